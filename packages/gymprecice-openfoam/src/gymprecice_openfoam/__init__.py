@@ -1,0 +1,1 @@
+"""gymprecice-openfoam."""
