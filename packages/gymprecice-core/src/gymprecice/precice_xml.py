@@ -298,7 +298,9 @@ def _participant(elem: etree._Element, path: Path) -> ParticipantSpec:
         elif tag == "watch-point":
             coords = tuple(float(x) for x in _required(child, "coordinate", path).split(";"))
             spec.watch_points.append(
-                WatchPointSpec(_required(child, "name", path), _required(child, "mesh", path), coords)
+                WatchPointSpec(
+                    _required(child, "name", path), _required(child, "mesh", path), coords
+                )
             )
         elif tag == "use-mesh":
             raise ConfigError(

@@ -1,0 +1,496 @@
+"""The Adapter: a Gymnasium environment whose physics is a preCICE-coupled simulation.
+
+A user writes an environment by subclassing :class:`Adapter`, setting ``action_space`` and
+``observation_space``, and overriding four methods (the Gym-preCICE paper's API):
+
+* ``_get_action(action, write_var_list)``: turn an action into data for each interface;
+* ``_get_observation(read_data, read_var_list)``: turn coupling data and/or solver outputs
+  into an observation;
+* ``_get_reward()``: the reward of the step that just ended;
+* ``_close_external_resources()``: release what the env itself opened.
+
+Everything generic is done here: configuration, the env's run directory, preparing,
+resetting and launching solvers through plugins, the preCICE participant (in a watched
+worker process), time windows and the smoothing of actions across them, seeding, and
+clean teardown. Reaching the coupling's end time truncates the episode (a time limit, not
+a terminal state).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import gymnasium as gym
+import numpy as np
+
+from gymprecice.actions import ActionSchedule
+from gymprecice.config import (
+    GymPreciceConfig,
+    InterfaceSpec,
+    check_solver_kinds,
+    load_config,
+)
+from gymprecice.coupling import CouplingSession, CouplingState, WorkerProcess
+from gymprecice.errors import CaseError, ConfigError
+from gymprecice.plugins import get_plugin_manager, solver_kinds
+from gymprecice.processes import PidRegistry, SolverProcess
+from gymprecice.rundir import RunDirectory, create_run_directory
+from gymprecice.solver import InterfaceGeometry, OutputReader, SolverContext
+
+__all__ = ["Adapter", "DataRef", "DataDict"]
+
+LIBRARY_ENV_VAR = "GYMPRECICE_PRECICE_LIBRARY"
+
+
+class DataRef(NamedTuple):
+    """One piece of coupling data: ``data`` on the controller mesh of ``interface``.
+
+    ``str(ref)`` is ``"<data>-<interface>"``, the key the Gym-preCICE paper used.
+    """
+
+    interface: str
+    mesh: str
+    data: str
+
+    def __str__(self) -> str:
+        return f"{self.data}-{self.interface}"
+
+
+class DataDict(dict):
+    """Coupling data keyed by :class:`DataRef`, also reachable by ``"Data-interface"``.
+
+    An interface with a single data field can be looked up by its interface name too.
+    """
+
+    def __getitem__(self, key: Any) -> Any:
+        if isinstance(key, DataRef) or not isinstance(key, str):
+            return super().__getitem__(key)
+        for ref in self:
+            if str(ref) == key:
+                return super().__getitem__(ref)
+        matches = [ref for ref in self if ref.interface == key]
+        if len(matches) == 1:
+            return super().__getitem__(matches[0])
+        raise KeyError(key)
+
+
+class Adapter(gym.Env):
+    """Base class of every gymprecice environment (see the module docstring)."""
+
+    metadata: dict[str, Any] = {"render_modes": []}
+
+    def __init__(
+        self,
+        options: Mapping[str, Any] | str | Path | None = None,
+        idx: int = 0,
+        *,
+        run_root: str | Path | None = None,
+        case_dir: str | Path | None = None,
+    ) -> None:
+        super().__init__()
+        if options is None:
+            raise ConfigError(
+                "Adapter needs its configuration: a path to gymprecice-config.json (or the case "
+                "directory holding it), or the parsed dict"
+            )
+        self.config: GymPreciceConfig = load_config(options, case_dir=case_dir)
+        check_solver_kinds(self.config, solver_kinds())
+        self.env_index = idx
+        self._run_root = run_root
+        self._hook = get_plugin_manager().hook
+        model = self.config.model
+        self._schedule = ActionSchedule(
+            model.actions.scheme, model.actions.windows, model.actions.filter_alpha
+        )
+        self._timeouts = model.timeouts
+        self._write_refs = [
+            DataRef(i.name, i.mesh, d) for i in self.config.interfaces.values() for d in i.write
+        ]
+        self._read_refs = [
+            DataRef(i.name, i.mesh, d) for i in self.config.interfaces.values() for d in i.read
+        ]
+        self._user_vertices: dict[str, np.ndarray] = {}
+        self._geometry: dict[str, InterfaceGeometry] | None = None
+        self._run: RunDirectory | None = None
+        self._solvers: dict[str, SolverContext] = {}
+        self._session: CouplingSession | None = None
+        self._readers: list[OutputReader] = []
+        self._episode_active = False
+        self._episode_over = False
+        self._closed = False
+        self.time = 0.0
+        self.time_window = 0
+        self.dt: float | None = self.config.time_window_size
+        self.end_time: float | None = self.config.end_time
+        self._last_read: DataDict = DataDict()
+
+    # -- the user API ----------------------------------------------------------------------
+    def _get_action(self, action: Any, write_var_list: list[DataRef]) -> Mapping[Any, Any]:
+        """Map ``action`` to ``{DataRef (or its name): array}`` for every written data."""
+        raise NotImplementedError
+
+    def _get_observation(self, read_data: DataDict, read_var_list: list[DataRef]) -> Any:
+        """Build the observation from coupling data and/or solver outputs."""
+        raise NotImplementedError
+
+    def _get_reward(self) -> float:
+        """Reward of the step that just ended."""
+        raise NotImplementedError
+
+    def _close_external_resources(self) -> None:
+        """Release files or handles the env itself opened (called at reset and close)."""
+
+    def _get_terminated(self) -> bool:
+        """Override when the task has a real terminal state (default: it has none)."""
+        return False
+
+    def _initial_action(self) -> np.ndarray:
+        """Actuator state at the start of an episode (default: zeros of the action space)."""
+        shape = getattr(self.action_space, "shape", None) or ()
+        return np.zeros(shape, dtype=float)
+
+    # -- geometry and directories ----------------------------------------------------------
+    @property
+    def run_dir(self) -> Path:
+        """This env's run directory (made and prepared on first use)."""
+        self._ensure_prepared()
+        assert self._run is not None
+        return self._run.root
+
+    @property
+    def solver_dirs(self) -> dict[str, Path]:
+        self._ensure_prepared()
+        return {name: ctx.run_dir for name, ctx in self._solvers.items()}
+
+    @property
+    def write_var_list(self) -> list[DataRef]:
+        return list(self._write_refs)
+
+    @property
+    def read_var_list(self) -> list[DataRef]:
+        return list(self._read_refs)
+
+    def set_interface_vertices(self, interface: str, coordinates: Any) -> None:
+        """Set the controller vertices of ``interface`` by hand (overrides plugins)."""
+        if interface not in self.config.interfaces:
+            raise ConfigError(
+                f"{self.config.where()}: no interface {interface!r}; the interfaces are "
+                f"{sorted(self.config.interfaces)}"
+            )
+        coords = np.atleast_2d(np.asarray(coordinates, dtype=float))
+        dims = self.config.interfaces[interface].dimensions
+        if coords.shape[1] != dims:
+            raise ValueError(
+                f"interface {interface!r}: coordinates have {coords.shape[1]} columns but mesh "
+                f"{self.config.interfaces[interface].mesh!r} is {dims}-D"
+            )
+        self._user_vertices[interface] = coords
+        self._geometry = None
+
+    def _set_precice_vectices(self, coords: Mapping[str, Any]) -> None:
+        """Gym-preCICE v0.1 spelling: ``{"write_to": {name: coords}, "read_from": {...}}``."""
+        groups = coords.values() if {"write_to", "read_from"} & set(coords) else [coords]
+        for group in groups:
+            for name, value in group.items():
+                self.set_interface_vertices(name, value)
+
+    @property
+    def interface_geometry(self) -> dict[str, InterfaceGeometry]:
+        """Vertices (and normals/areas where a plugin knows them) of every interface."""
+        if self._geometry is None:
+            self._geometry = {
+                name: self._find_geometry(spec) for name, spec in self.config.interfaces.items()
+            }
+        return self._geometry
+
+    def _find_geometry(self, spec: InterfaceSpec) -> InterfaceGeometry:
+        if spec.name in self._user_vertices:
+            return InterfaceGeometry(self._user_vertices[spec.name])
+        self._ensure_prepared()
+        for solver in self._solvers.values():
+            if spec.partner and solver.participant and solver.participant != spec.partner:
+                continue
+            geometry = self._hook.gymprecice_interface_geometry(
+                solver=solver, interface=spec.name, mesh=spec.partner_mesh or spec.mesh
+            )
+            if geometry is not None:
+                return _fit_dimensions(geometry, spec.dimensions)
+        raise ConfigError(
+            f"{self.config.where()}: no plugin knows the vertices of interface {spec.name!r} "
+            f"(mesh {spec.mesh!r}, coupled to {spec.partner or 'no participant'}'s mesh "
+            f"{spec.partner_mesh!r}); call self.set_interface_vertices({spec.name!r}, coords) "
+            "in your env's __init__"
+        )
+
+    def open_output(self, solver: str, name: str, **options: Any) -> OutputReader:
+        """An incremental reader of a solver output (closed by core at reset and close)."""
+        self._ensure_prepared()
+        if solver not in self._solvers:
+            raise ConfigError(f"no solver {solver!r}; the solvers are {sorted(self._solvers)}")
+        reader = self._hook.gymprecice_open_output(
+            solver=self._solvers[solver], name=name, options=options
+        )
+        if reader is None:
+            raise ConfigError(
+                f"no installed plugin opens output {name!r} of solver {solver!r} "
+                f"(kind {self._solvers[solver].kind!r})"
+            )
+        self._readers.append(reader)
+        return reader
+
+    def _ensure_prepared(self) -> None:
+        if self._run is not None:
+            return
+        self._run = create_run_directory(self.config, self.env_index, self._run_root)
+        for spec in self.config.solvers.values():
+            ctx = SolverContext(
+                name=spec.name,
+                kind=spec.kind,
+                run_dir=self._run.solver_dir(spec.path),
+                source_dir=self.config.case_dir / spec.path,
+                env_dir=self._run.root,
+                env_index=self.env_index,
+                participant=spec.participant,
+                options=dict(spec.options),
+                config_file=self.config.file,
+                precice=self.config.precice,
+                precice_config_file=self._run.precice_config_file,
+            )
+            if not self._hook.gymprecice_prepare_case(solver=ctx):
+                raise CaseError(f"{ctx.describe()}: no installed plugin prepares this kind")
+            self._solvers[spec.name] = ctx
+
+    # -- Gymnasium API ---------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        super().reset(seed=seed)
+        started = time.perf_counter()
+        self._end_episode(abort=True)
+        self._close_readers()
+        self._close_external_resources()
+        self._ensure_prepared()
+        assert self._run is not None
+        registry = PidRegistry(self._run.root)
+        worker = WorkerProcess(self._run.state_dir / "coupling-worker.log", registry)
+        processes: list[SolverProcess] = []
+        try:
+            episode_seed = int(self.np_random.integers(2**63 - 1))
+            for ctx in self._solvers.values():
+                ctx.rng = np.random.default_rng(episode_seed)
+                ctx.reset_options = dict(options or {})
+                if not self._hook.gymprecice_reset_case(solver=ctx):
+                    raise CaseError(f"{ctx.describe()}: no installed plugin resets this kind")
+            for ctx in self._solvers.values():
+                spec = self._hook.gymprecice_launch_solver(solver=ctx)
+                if spec is None:
+                    raise CaseError(f"{ctx.describe()}: no installed plugin launches this kind")
+                processes.append(
+                    SolverProcess.start(ctx.name, spec, env_index=self.env_index, registry=registry)
+                )
+            self._session = CouplingSession(
+                worker,
+                processes,
+                env_index=self.env_index,
+                progress_timeout=self._timeouts.progress,
+                kill_grace=self._timeouts.kill_grace,
+                health_check=self._health_check,
+            )
+            self._schedule.start(self._initial_action())
+            initial = self._collect_write(self._schedule.current)
+            state = self._session.initialize(self._init_request(initial), self._timeouts.reset)
+        except BaseException:
+            if self._session is not None:
+                self._session.kill()
+            else:
+                worker.kill()
+                for process in processes:
+                    process.terminate(self._timeouts.kill_grace)
+            self._session = None
+            raise
+        self._episode_active = True
+        self._episode_over = False
+        self._apply(state)
+        obs = self._get_observation(self._last_read, self.read_var_list)
+        info = self._info(state, {"reset_s": time.perf_counter() - started})
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        if not self._episode_active or self._session is None:
+            if self._episode_over:
+                raise gym.error.ResetNeeded(
+                    "the episode has ended (truncated or terminated); call reset() before step()"
+                )
+            raise gym.error.ResetNeeded("call reset() before step()")
+        started = time.perf_counter()
+        windows = self._windows_left()
+        writes = [self._collect_write(value) for value in self._schedule.spread(action, windows)]
+        env_s = time.perf_counter() - started
+        waited = time.perf_counter()
+        try:
+            state = self._session.advance(writes, self._timeouts.step)
+        except BaseException:
+            self._session = None
+            self._episode_active = False
+            raise
+        wait_s = time.perf_counter() - waited
+        self._apply(state)
+        after = time.perf_counter()
+        obs = self._get_observation(self._last_read, self.read_var_list)
+        reward = float(self._get_reward())
+        terminated = bool(self._get_terminated())
+        truncated = not state.ongoing and not terminated
+        env_s += time.perf_counter() - after
+        if terminated or truncated:
+            self._end_episode(abort=terminated and state.ongoing)
+            self._episode_over = True
+        info = self._info(
+            state,
+            {
+                "precice_s": state.precice_s,
+                "wait_s": wait_s,
+                "env_s": env_s,
+                "step_s": time.perf_counter() - started,
+            },
+        )
+        return obs, reward, terminated, truncated, info
+
+    def close(self) -> None:
+        """End everything this env started; safe to call any number of times."""
+        if self._closed:
+            return
+        self._closed = True
+        self._end_episode(abort=True)
+        self._close_readers()
+        self._close_external_resources()
+
+    def __del__(self) -> None:
+        try:
+            if not getattr(self, "_closed", True):
+                self._end_episode(abort=True)
+        except Exception:
+            pass
+
+    # -- internals -------------------------------------------------------------------------
+    def _library(self) -> str:
+        return os.environ.get(LIBRARY_ENV_VAR) or self.config.model.precice.library
+
+    def _init_request(self, initial: dict[tuple[str, str], np.ndarray]) -> dict[str, Any]:
+        assert self._run is not None
+        meshes = {
+            spec.mesh: self.interface_geometry[name].coordinates
+            for name, spec in self.config.interfaces.items()
+        }
+        return {
+            "cwd": str(self._run.root),
+            "library": self._library(),
+            "participant": self.config.participant,
+            "config_file": str(self._run.precice_config_file),
+            "meshes": meshes,
+            "read": [(ref.mesh, ref.data) for ref in self._read_refs],
+            "initial_data": initial,
+        }
+
+    def _collect_write(self, value: Any) -> dict[tuple[str, str], np.ndarray]:
+        if not self._write_refs:
+            return {}
+        produced = self._get_action(value, self.write_var_list)
+        out: dict[tuple[str, str], np.ndarray] = {}
+        for ref in self._write_refs:
+            array = _lookup(produced, ref, self._write_refs)
+            if array is None:
+                raise KeyError(
+                    f"_get_action returned no data for {ref} (interface {ref.interface!r}, data "
+                    f"{ref.data!r}); return a dict keyed by the entries of write_var_list"
+                )
+            out[(ref.mesh, ref.data)] = self._shaped(ref, array)
+        return out
+
+    def _shaped(self, ref: DataRef, array: Any) -> np.ndarray:
+        n = len(self.interface_geometry[ref.interface].coordinates)
+        width = self.config.precice.data_dimension(ref.data, ref.mesh)
+        values = np.asarray(array, dtype=float)
+        expected = (n,) if width == 1 else (n, width)
+        if values.shape != expected:
+            try:
+                values = values.reshape(expected)
+            except ValueError:
+                raise ValueError(
+                    f"_get_action gave {ref} with shape {values.shape}; expected {expected} "
+                    f"({n} vertices of interface {ref.interface!r}"
+                    + (")" if width == 1 else f", {width}-D vector data)")
+                ) from None
+        return values
+
+    def _apply(self, state: CouplingState) -> None:
+        self.time = state.time
+        self.time_window = state.windows
+        if state.dt:
+            self.dt = state.dt
+        by_key = {(ref.mesh, ref.data): ref for ref in self._read_refs}
+        self._last_read = DataDict({by_key[key]: value for key, value in state.read.items()})
+
+    def _windows_left(self) -> int:
+        n = self._schedule.windows
+        if self.end_time is None or not self.dt:
+            return n
+        left = round((self.end_time - self.time) / self.dt)
+        return max(1, min(n, left))
+
+    def _info(self, state: CouplingState, timing: dict[str, float]) -> dict[str, Any]:
+        return {
+            "time": state.time,
+            "time_window": state.windows,
+            "env_index": self.env_index,
+            "timing": timing,
+        }
+
+    def _health_check(self, process: SolverProcess) -> str | None:
+        ctx = self._solvers.get(process.name)
+        if ctx is None:
+            return None
+        return self._hook.gymprecice_check_solver(solver=ctx, log_text=process.log_tail(200))
+
+    def _end_episode(self, *, abort: bool) -> None:
+        session, self._session = self._session, None
+        self._episode_active = False
+        if session is None:
+            return
+        if abort:
+            session.kill()
+        else:
+            session.finish(self._timeouts.finalize)
+
+    def _close_readers(self) -> None:
+        readers, self._readers = self._readers, []
+        for reader in readers:
+            try:
+                reader.close()
+            except Exception:
+                pass
+
+
+def _fit_dimensions(geometry: InterfaceGeometry, dimensions: int) -> InterfaceGeometry:
+    """preCICE 2-D meshes take (x, y): drop z from 3-D coordinates of a 2-D case."""
+    coords = geometry.coordinates
+    if coords.shape[1] == dimensions:
+        return geometry
+    if coords.shape[1] == 3 and dimensions == 2:
+        return InterfaceGeometry(coords[:, :2], geometry.normals, geometry.areas, geometry.patches)
+    raise ValueError(
+        f"interface coordinates have {coords.shape[1]} columns but the preCICE mesh is {dimensions}-D"
+    )
+
+
+def _lookup(produced: Mapping[Any, Any], ref: DataRef, refs: list[DataRef]) -> Any:
+    """Find ``ref``'s values under its DataRef, its paper-style name, or its interface."""
+    for key in (ref, str(ref)):
+        if key in produced:
+            return produced[key]
+    if ref.interface in produced and sum(r.interface == ref.interface for r in refs) == 1:
+        return produced[ref.interface]
+    return None

@@ -1,0 +1,95 @@
+"""Each environment's own run directory and preCICE exchange directory.
+
+N environments must reset concurrently without a global lock, so each gets a full, real
+copy of the case (never symlinks into the pristine case, which would let one env's solver
+write into every other env's files) and its own preCICE exchange directory, written into
+its own copy of the preCICE configuration. Solvers refer to the configuration by a relative
+path, so they pick up the env's copy without being told.
+"""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+from gymprecice.config import GymPreciceConfig
+from gymprecice.errors import ConfigError
+from gymprecice.precice_xml import write_with_exchange_directory
+
+MARKER = ".gymprecice"
+EXCHANGE_DIR_NAME = "precice-exchange"
+_NEVER_COPIED = {"__pycache__", ".git", MARKER}
+
+
+@dataclass(frozen=True)
+class RunDirectory:
+    """Where one env runs: its root, its solvers' directories and its preCICE files."""
+
+    root: Path
+    exchange_dir: Path
+    precice_config_file: Path
+
+    @property
+    def state_dir(self) -> Path:
+        """gymprecice's own bookkeeping (pid registry, worker log)."""
+        return self.root / MARKER
+
+    def solver_dir(self, relative: str) -> Path:
+        return self.root / relative
+
+
+def env_root(config: GymPreciceConfig, env_index: int, run_root: str | Path | None) -> Path:
+    base = Path(run_root) if run_root is not None else Path(config.model.environment.run_root)
+    if not base.is_absolute():
+        base = Path.cwd() / base
+    return (base / f"env_{env_index}").resolve()
+
+
+def create_run_directory(
+    config: GymPreciceConfig, env_index: int, run_root: str | Path | None = None
+) -> RunDirectory:
+    """Make ``<run_root>/env_<idx>`` as a fresh copy of the case directory.
+
+    A previous run directory of the same env is replaced only when it carries gymprecice's
+    marker; any other existing directory is left alone and reported, so a mistyped
+    ``run_root`` can never delete a user's data.
+    """
+    root = env_root(config, env_index, run_root)
+    case = config.case_dir
+    if root == case or case.is_relative_to(root):
+        raise ConfigError(
+            f"{config.where()}: environment.run_root puts env {env_index}'s run directory at "
+            f"{root}, which contains the case itself; choose a run_root outside the case"
+        )
+    if root.exists():
+        if not (root / MARKER).is_dir():
+            raise ConfigError(
+                f"{root} exists and was not made by gymprecice; refusing to replace it. "
+                "Move it away or set environment.run_root to another directory."
+            )
+        shutil.rmtree(root)
+    root.parent.mkdir(parents=True, exist_ok=True)
+    ignore_below_case = _ignored_run_roots(case, root)
+    shutil.copytree(
+        case,
+        root,
+        symlinks=False,
+        ignore=lambda directory, names: [
+            n
+            for n in names
+            if n in _NEVER_COPIED or (Path(directory) / n).resolve() in ignore_below_case
+        ],
+    )
+    (root / MARKER).mkdir(exist_ok=True)
+    exchange = root / EXCHANGE_DIR_NAME
+    exchange.mkdir(exist_ok=True)
+    precice_file = root / config.precice_file.relative_to(case)
+    write_with_exchange_directory(config.precice_file, precice_file, exchange)
+    return RunDirectory(root=root, exchange_dir=exchange, precice_config_file=precice_file)
+
+
+def _ignored_run_roots(case: Path, root: Path) -> set[Path]:
+    """Run roots that live inside the case directory must not be copied into each env."""
+    run_root = root.parent.resolve()
+    return {run_root} if run_root.is_relative_to(case) else set()

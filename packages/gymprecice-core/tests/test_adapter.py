@@ -1,0 +1,224 @@
+"""The Adapter's own logic against a partner-less preCICE stub and real solver processes."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from gymprecice.core import Adapter
+from gymprecice.errors import ConfigError, SolverCrashedError, SolverTimeoutError
+
+STUBS = Path(__file__).parent / "stubs"
+TICKER = "import time\nfor i in range(100000):\n    print('step', i, flush=True); time.sleep(0.05)"
+
+
+@pytest.fixture(autouse=True)
+def stub_precice(monkeypatch, tmp_path):
+    monkeypatch.setenv("PYTHONPATH", f"{STUBS}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    monkeypatch.setenv("GYMPRECICE_PRECICE_LIBRARY", "stub_precice")
+    monkeypatch.setenv("STUB_PRECICE_LOG", str(tmp_path / "writes.log"))
+
+
+class JetEnv(Adapter):
+    def __init__(self, options, idx=0, **kwargs):
+        super().__init__(options, idx, **kwargs)
+        self.set_interface_vertices("jet1", [[0.0, 1.0], [0.0, 2.0]])
+        self.set_interface_vertices("jet2", [[1.0, 1.0]])
+        self.set_interface_vertices("probe", [[5.0, 0.0], [6.0, 0.0], [7.0, 0.0]])
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(3,), dtype=np.float32)
+        self.closed_resources = 0
+
+    def _get_action(self, action, write_var_list):
+        a = float(np.asarray(action).ravel()[0])
+        return {"Velocity-jet1": np.full((2, 2), a), "jet2": [[a, -a]]}
+
+    def _get_observation(self, read_data, read_var_list):
+        return np.asarray(read_data["probe"], dtype=np.float32)
+
+    def _get_reward(self):
+        return -self.time
+
+    def _close_external_resources(self):
+        self.closed_resources += 1
+
+
+def _case(make_case, base_config, tmp_path, argv=None, **overrides):
+    config = base_config(**overrides)
+    config["physics_simulation_engine"]["solvers"]["fluid"]["options"]["argv"] = argv or [
+        "{python}",
+        "-c",
+        TICKER,
+    ]
+    config.setdefault("timeouts", {}).update({"progress": 3, "kill_grace": 0.5, "finalize": 2})
+    return make_case(tmp_path / "case", config)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_episode_runs_to_max_time_and_truncates(make_case, base_config, tmp_path):
+    case = _case(make_case, base_config, tmp_path, actions={"windows": 3, "scheme": "ramp"})
+    env = JetEnv(case, 0, run_root=tmp_path / "runs")
+    obs, info = env.reset(seed=1)
+    assert obs.shape == (3,) and info["time"] == 0.0
+    rewards, truncated, steps = [], False, 0
+    while not truncated:
+        obs, reward, terminated, truncated, info = env.step(np.array([0.9]))
+        assert terminated is False
+        steps += 1
+        rewards.append(reward)
+    # max-time 0.01 with 0.001 windows, 3 windows per step: 3 + 3 + 3 + 1 windows
+    assert steps == 4
+    assert info["time"] == pytest.approx(0.01) and info["time_window"] == 10
+    assert np.allclose(obs, 0.01)
+    assert set(info["timing"]) >= {"precice_s", "wait_s", "env_s", "step_s"}
+    with pytest.raises(gym.error.ResetNeeded):
+        env.step(np.array([0.0]))
+    env.close()
+    writes = (tmp_path / "writes.log").read_text().splitlines()
+    jet2 = [line for line in writes if "Controller-Mesh-jet2" in line]
+    # initial data (zeros) then a ramp 0.3, 0.6, 0.9, 0.9, ...
+    assert jet2[0].endswith("[0.0, -0.0]")
+    assert jet2[1].split(" ", 3)[3] == str([0.3, -0.3]) or np.allclose(
+        eval(jet2[1].split(" ", 3)[3]), [0.3, -0.3]
+    )
+
+
+def test_reset_mid_episode_and_close_leave_nothing_running(make_case, base_config, tmp_path):
+    case = _case(make_case, base_config, tmp_path)
+    env = JetEnv(case, 0, run_root=tmp_path / "runs")
+    env.reset(seed=0)
+    first = [p.pid for p in env._session.solvers] + [env._session.worker.pid]
+    env.step(env.action_space.sample())
+    env.reset()
+    second = [p.pid for p in env._session.solvers] + [env._session.worker.pid]
+    assert not any(_alive(pid) for pid in first)
+    env.close()
+    env.close()  # idempotent
+    assert not any(_alive(pid) for pid in second)
+    assert env.closed_resources >= 2
+    assert (env.run_dir / ".gymprecice" / "pids").read_text().strip() == ""
+
+
+def test_solver_exiting_1_mid_episode_is_reported_with_log_tail(
+    make_case, base_config, tmp_path, monkeypatch
+):
+    monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "1")
+    crash = "import sys, time\nprint('solver says: divergence detected', flush=True)\ntime.sleep(1)\nsys.exit(1)"
+    case = _case(make_case, base_config, tmp_path, argv=["{python}", "-c", crash])
+    env = JetEnv(case, 3, run_root=tmp_path / "runs")
+    env.reset()
+    env.step(np.array([0.1]))
+    started = time.monotonic()
+    with pytest.raises(SolverCrashedError) as info:
+        env.step(np.array([0.1]))
+    assert time.monotonic() - started < 5
+    err = info.value
+    assert err.env_index == 3 and err.solver == "fluid" and err.returncode == 1
+    assert "divergence detected" in err.log_tail and "divergence detected" in str(err)
+    assert not env._episode_active
+    monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "-1")
+    env.reset()  # the next reset starts clean
+    env.step(np.array([0.1]))
+    env.close()
+
+
+def test_hung_solver_is_killed_after_the_progress_timeout(
+    make_case, base_config, tmp_path, monkeypatch
+):
+    monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "1")
+    silent = "import time\ntime.sleep(1000)"
+    case = _case(make_case, base_config, tmp_path, argv=["{python}", "-c", silent])
+    env = JetEnv(case, 0, run_root=tmp_path / "runs")
+    env.reset()
+    env.step(np.array([0.0]))
+    pids = [p.pid for p in env._session.solvers] + [env._session.worker.pid]
+    started = time.monotonic()
+    with pytest.raises(SolverTimeoutError, match="no progress for 3 s"):
+        env.step(np.array([0.0]))
+    assert 2.5 < time.monotonic() - started < 8
+    assert not any(_alive(pid) for pid in pids)
+    env.close()
+
+
+def test_solver_exiting_at_start_fails_the_reset(make_case, base_config, tmp_path, monkeypatch):
+    monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "0")
+    case = _case(
+        make_case,
+        base_config,
+        tmp_path,
+        argv=["{python}", "-c", "import sys; sys.exit('no mesh found')"],
+    )
+    env = JetEnv(case, 0, run_root=tmp_path / "runs")
+    monkeypatch.setattr("gymprecice.core.CouplingSession.initialize", _blocking_initialize)
+    with pytest.raises(SolverCrashedError, match="exited with status 1") as info:
+        env.reset()
+    assert "no mesh found" in info.value.log_tail
+    env.close()
+
+
+def _blocking_initialize(self, request, timeout):
+    # initialize blocks in real preCICE until the partner connects; emulate that here
+    return self._state(self._request("advance", {"writes": [{}]}, timeout, checking_health=True))
+
+
+def test_wrong_action_shape_is_a_clear_error(make_case, base_config, tmp_path):
+    case = _case(make_case, base_config, tmp_path)
+
+    class Bad(JetEnv):
+        def _get_action(self, action, write_var_list):
+            return {"jet1": np.zeros(5), "jet2": np.zeros((1, 2))}
+
+    env = Bad(case, 0, run_root=tmp_path / "runs")
+    with pytest.raises(ValueError, match=r"Velocity-jet1 with shape \(5,\); expected \(2, 2\)"):
+        env.reset()
+    env.close()
+
+
+def test_interfaces_without_vertices_say_how_to_set_them(make_case, base_config, tmp_path):
+    case = _case(make_case, base_config, tmp_path)
+
+    class NoGeometry(JetEnv):
+        def __init__(self, options, idx=0, **kwargs):
+            Adapter.__init__(self, options, idx, **kwargs)
+            self.closed_resources = 0
+            self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+
+    env = NoGeometry(case, 0, run_root=tmp_path / "runs")
+    with pytest.raises(ConfigError, match=r"set_interface_vertices\('jet1'"):
+        env.reset()
+    env.close()
+
+
+def test_missing_pyprecice_says_what_to_install(make_case, base_config, tmp_path, monkeypatch):
+    from gymprecice.errors import PreciceNotInstalledError
+
+    monkeypatch.setenv("GYMPRECICE_PRECICE_LIBRARY", "precice_that_is_not_installed")
+    case = _case(make_case, base_config, tmp_path)
+    env = JetEnv(case, 0, run_root=tmp_path / "runs")
+    with pytest.raises(PreciceNotInstalledError, match=r"gymprecice-core\[precice\]"):
+        env.reset()
+    env.close()
+
+
+def test_seeding_is_reproducible(make_case, base_config, tmp_path):
+    case = _case(make_case, base_config, tmp_path)
+    env = JetEnv(case, 0, run_root=tmp_path / "runs")
+    env.reset(seed=42)
+    a = env.np_random.random()
+    env.reset(seed=42)
+    assert env.np_random.random() == a
+    env.close()
+    assert sys.executable

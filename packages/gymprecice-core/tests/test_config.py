@@ -1,0 +1,153 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from gymprecice.config import check_solver_kinds, load_config
+from gymprecice.errors import ConfigError
+
+
+def _write(case: Path, config: dict) -> Path:
+    path = case / "gymprecice-config.json"
+    path.write_text(json.dumps(config))
+    return path
+
+
+def test_explicit_form_resolves_interfaces_and_partner_meshes(case_dir: Path) -> None:
+    cfg = load_config(case_dir)
+    assert cfg.participant == "Controller"
+    assert set(cfg.interfaces) == {"jet1", "jet2", "probe"}
+    jet1 = cfg.interfaces["jet1"]
+    assert (jet1.mesh, jet1.write, jet1.read, jet1.dimensions) == (
+        "Controller-Mesh-jet1",
+        ("Velocity",),
+        (),
+        2,
+    )
+    assert (jet1.partner, jet1.partner_mesh) == ("Fluid", "Fluid-Mesh-jet1")
+    assert cfg.interfaces["probe"].read == ("Pressure",)
+    assert cfg.solvers["fluid"].kind == "command"
+    assert cfg.end_time == pytest.approx(0.01)
+
+
+def test_paper_form_is_accepted(case_dir: Path) -> None:
+    (case_dir / "fluid-openfoam").mkdir()
+    path = _write(
+        case_dir,
+        {
+            "environment": {"name": "jet_cylinder"},
+            "physics_simulation_engine": {
+                "solvers": ["fluid-openfoam"],
+                "reset_script": "reset.sh",
+                "run_script": "run.sh",
+            },
+            "controller": {"read_from": {}, "write_to": {"jet1": "Velocity", "jet2": "Velocity"}},
+        },
+    )
+    cfg = load_config(path)
+    solver = cfg.solvers["fluid-openfoam"]
+    assert solver.kind == "script"
+    assert solver.options == {"run_script": "run.sh", "reset_script": "reset.sh"}
+
+
+def test_dict_source_uses_case_dir(case_dir: Path, base_config) -> None:
+    cfg = load_config(base_config(), case_dir=case_dir)
+    assert cfg.file is None and cfg.case_dir == case_dir.resolve()
+
+
+@pytest.mark.parametrize(
+    ("mutate", "patterns"),
+    [
+        (
+            lambda c: c["controller"].update(wirte_to={}),
+            ["unknown key 'controller.wirte_to'", "write_to"],
+        ),
+        (lambda c: c.update(bogus=1), ["unknown key 'bogus'", "physics_simulation_engine"]),
+        (
+            lambda c: c["physics_simulation_engine"]["solvers"]["fluid"].update(knd="x"),
+            ["unknown key 'physics_simulation_engine.solvers.fluid.knd'", "participant"],
+        ),
+        (lambda c: c.update(actions={"windows": 0}), ["actions.windows"]),
+        (lambda c: c.update(actions={"scheme": "smooth"}), ["actions.scheme", "hold"]),
+        (lambda c: c.pop("physics_simulation_engine"), ["missing key 'physics_simulation_engine'"]),
+    ],
+)
+def test_schema_errors_name_file_and_key(case_dir: Path, base_config, mutate, patterns) -> None:
+    config = base_config()
+    mutate(config)
+    path = _write(case_dir, config)
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    message = str(info.value)
+    assert str(path) in message
+    for pattern in patterns:
+        assert pattern in message
+
+
+@pytest.mark.parametrize(
+    ("mutate", "pattern"),
+    [
+        (lambda c: c["controller"].update(participant="Ctrl"), "has no such participant"),
+        (lambda c: c["controller"]["write_to"].update(jet3="Velocity"), "interface 'jet3'"),
+        (
+            lambda c: c["controller"]["write_to"].update(jet1="Pressure"),
+            "write 'Pressure' on mesh 'Controller-Mesh-jet1'",
+        ),
+        (lambda c: c["controller"]["read_from"].update(probe="Velocity"), "read 'Velocity'"),
+        (lambda c: c["controller"].update(meshes={"jet1": "Nope"}), "provides no such mesh"),
+        (
+            lambda c: c["physics_simulation_engine"]["solvers"]["fluid"].update(
+                participant="Solid"
+            ),
+            "solvers.fluid.participant",
+        ),
+    ],
+)
+def test_cross_check_names_both_files(case_dir: Path, base_config, mutate, pattern) -> None:
+    config = base_config()
+    mutate(config)
+    path = _write(case_dir, config)
+    with pytest.raises(ConfigError, match=pattern) as info:
+        load_config(path)
+    assert str(path) in str(info.value)
+    assert str(case_dir / "precice-config.xml") in str(info.value)
+
+
+def test_missing_solver_dir_and_precice_file(case_dir: Path, base_config) -> None:
+    config = base_config()
+    config["physics_simulation_engine"]["solvers"]["fluid"]["path"] = "nowhere"
+    with pytest.raises(ConfigError, match="nowhere.*does not exist"):
+        load_config(_write(case_dir, config))
+    config = base_config(precice={"config_file": "missing.xml"})
+    with pytest.raises(ConfigError, match="precice.config_file"):
+        load_config(_write(case_dir, config))
+
+
+def test_invalid_json_reports_line(case_dir: Path) -> None:
+    (case_dir / "gymprecice-config.json").write_text('{"environment": {,}')
+    with pytest.raises(ConfigError, match=r"gymprecice-config.json:1:\d+: not valid JSON"):
+        load_config(case_dir)
+
+
+def test_paper_form_without_run_script(case_dir: Path) -> None:
+    path = _write(
+        case_dir,
+        {
+            "physics_simulation_engine": {"solvers": ["fluid"]},
+            "controller": {"write_to": {"jet1": "Velocity"}},
+        },
+    )
+    with pytest.raises(ConfigError, match="run_script is missing"):
+        load_config(path)
+
+
+def test_unknown_kind_lists_installed(case_dir: Path) -> None:
+    cfg = load_config(case_dir)
+    with pytest.raises(
+        ConfigError,
+        match=r"'command'.*installed kinds: \['openfoam'\].*pip install gymprecice-command",
+    ):
+        check_solver_kinds(cfg, {"openfoam": "OpenFOAM"})
+    check_solver_kinds(cfg, {"command": "argv"})
