@@ -118,10 +118,10 @@ def test_cross_check_names_both_files(case_dir: Path, base_config, mutate, patte
 def test_missing_solver_dir_and_precice_file(case_dir: Path, base_config) -> None:
     config = base_config()
     config["physics_simulation_engine"]["solvers"]["fluid"]["path"] = "nowhere"
-    with pytest.raises(ConfigError, match="nowhere.*does not exist"):
+    with pytest.raises(ConfigError, match=r"nowhere.*does not exist"):
         load_config(_write(case_dir, config))
     config = base_config(precice={"config_file": "missing.xml"})
-    with pytest.raises(ConfigError, match="precice.config_file"):
+    with pytest.raises(ConfigError, match=r"precice\.config_file"):
         load_config(_write(case_dir, config))
 
 

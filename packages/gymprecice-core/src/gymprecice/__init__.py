@@ -1,3 +1,28 @@
-"""gymprecice: Gymnasium environments from preCICE-coupled PDE simulations."""
+"""gymprecice: Gymnasium environments from preCICE-coupled PDE simulations.
+
+Importing the package registers the Gymnasium environment ids of every installed plugin
+(see :mod:`gymprecice.registration`), so ``gymnasium.make("gymprecice/...")`` works
+without importing the plugin packages by hand.
+"""
 
 __version__ = "0.2.0"
+
+
+def _register_plugin_environments() -> None:
+    # Never let plugin trouble make ``import gymprecice`` fail: registration already
+    # reports each broken plugin; this guards the plugin manager itself.
+    import warnings
+
+    try:
+        from gymprecice.registration import register_environments
+
+        register_environments()
+    except Exception as exc:  # pragma: no cover - defensive
+        warnings.warn(
+            f"gymprecice could not register plugin environments: {type(exc).__name__}: {exc}",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+
+
+_register_plugin_environments()

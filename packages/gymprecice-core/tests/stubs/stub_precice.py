@@ -29,7 +29,7 @@ class Participant:
         self.written = {}
         self.block_at = int(os.environ.get("STUB_PRECICE_BLOCK_AT", "-1"))
         log = os.environ.get("STUB_PRECICE_LOG")
-        self.log = open(log, "a") if log else None
+        self.log = open(log, "a") if log else None  # noqa: SIM115 - lives as long as the participant
 
     def set_mesh_vertices(self, mesh, coords):
         coords = np.asarray(coords)
