@@ -31,7 +31,7 @@ apt_install() {
 }
 
 if command -v apt-get >/dev/null 2>&1 && [ "${GYMPRECICE_SKIP_APT:-0}" != "1" ]; then
-  apt_install openfoam libdeal.ii-dev
+  apt_install openfoam libdeal.ii-dev libopenmpi-dev
 fi
 
 if [ ! -x .venv/bin/python ]; then
@@ -47,5 +47,5 @@ $PIP install -q --disable-pip-version-check \
   -e packages/gymprecice-openfoam \
   -e packages/gymprecice-dealii \
   -e "packages/gymprecice-tutorials[train]" \
-  pytest pytest-timeout ruff build
+  pytest pytest-timeout ruff build mpi4py
 echo "setup: done (.venv ready)"
