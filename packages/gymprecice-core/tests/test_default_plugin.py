@@ -1,0 +1,328 @@
+"""Core's default plugin: kinds "script" (the paper's scripts) and "command" (an argv)."""
+
+from __future__ import annotations
+
+import os
+import stat
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gymprecice import default_plugin
+from gymprecice.errors import CaseError, ConfigError, SolverCrashedError, SolverTimeoutError
+from gymprecice.processes import run_to_completion
+from gymprecice.solver import LaunchSpec, SolverContext
+from gymprecice.testing.conformance import SolverPluginConformance, make_solver_context
+
+PRERUN = """#!/bin/sh
+echo prerun >> prerun.count
+"""
+RESET = """#!/bin/sh
+echo "$GYMPRECICE_SEED $GYMPRECICE_SOLVER $GYMPRECICE_ENV_INDEX" >> reset.count
+"""
+RUN = """#!/bin/sh
+echo "running in $(pwd)" > run.out
+"""
+
+
+def _script(path: Path, text: str, *, executable: bool = True) -> Path:
+    path.write_text(text)
+    mode = path.stat().st_mode
+    path.chmod(mode | stat.S_IXUSR if executable else mode & ~0o111)
+    return path
+
+
+def _script_case(root: Path) -> Path:
+    source = root / "case" / "fluid"
+    source.mkdir(parents=True)
+    _script(source / "prerun.sh", PRERUN)
+    _script(source / "reset.sh", RESET)
+    _script(source / "run.sh", RUN)
+    (source / "input.txt").write_text("pristine\n")
+    return source
+
+
+SCRIPT_OPTIONS = {"prerun_script": "prerun.sh", "reset_script": "reset.sh", "run_script": "run.sh"}
+
+
+def _script_solver(base: Path, **options) -> SolverContext:
+    opts = {**SCRIPT_OPTIONS, **options}
+    return make_solver_context("script", _script_case(base), base, name="fluid", options=opts)
+
+
+def _command_solver(base: Path, **options) -> SolverContext:
+    source = base / "case" / "partner"
+    source.mkdir(parents=True)
+    (source / "input.txt").write_text("pristine\n")
+    opts = {
+        "argv": ["{python}", "-c", "open('ran.txt', 'w').write('ok')"],
+        "prepare_argv": ["{python}", "-c", "open('prepared.txt', 'a').write('p')"],
+        "reset_argv": ["{python}", "-c", "open('reset.txt', 'a').write('r')"],
+        **options,
+    }
+    return make_solver_context(
+        "command", source, base, name="partner", options=opts, participant="Fluid"
+    )
+
+
+# -- the conformance suite, run for both kinds ---------------------------------------------
+
+
+class TestScriptKindConformance(SolverPluginConformance):
+    @pytest.fixture
+    def plugin(self):
+        return default_plugin
+
+    @pytest.fixture
+    def kind(self):
+        return "script"
+
+    @pytest.fixture
+    def make_solver(self):
+        return _script_solver
+
+
+class TestCommandKindConformance(SolverPluginConformance):
+    @pytest.fixture
+    def plugin(self):
+        return default_plugin
+
+    @pytest.fixture
+    def kind(self):
+        return "command"
+
+    @pytest.fixture
+    def make_solver(self):
+        return _command_solver
+
+
+# -- kind "script" ----------------------------------------------------------------------------
+
+
+def test_prerun_once_reset_every_episode_run_launched(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    assert default_plugin.gymprecice_prepare_case(solver) is True
+    for seed in (1, 2, 3):
+        solver.rng = np.random.default_rng(seed)
+        assert default_plugin.gymprecice_reset_case(solver) is True
+    assert (solver.run_dir / "prerun.count").read_text().splitlines() == ["prerun"]
+    resets = (solver.run_dir / "reset.count").read_text().splitlines()
+    assert len(resets) == 3
+    # the seed comes from the episode's generator: reproducible, different per episode
+    seeds = [line.split()[0] for line in resets]
+    expected = [str(int(np.random.default_rng(s).integers(2**31 - 1))) for s in (1, 2, 3)]
+    assert seeds == expected
+    assert all(line.split()[1:] == ["fluid", "0"] for line in resets)
+    assert (solver.run_dir / "prerun.log").exists() and (solver.run_dir / "reset.log").exists()
+
+    spec = default_plugin.gymprecice_launch_solver(solver)
+    assert isinstance(spec, LaunchSpec)
+    assert spec.argv == [str(solver.run_dir / "run.sh")]
+    assert spec.cwd == solver.run_dir
+    assert spec.env["GYMPRECICE_SOLVER"] == "fluid"
+    run_to_completion("fluid", spec, timeout=30)
+    assert (solver.run_dir / "run.out").read_text().strip() == f"running in {solver.run_dir}"
+    assert not (solver.source_dir / "run.out").exists()
+
+
+def test_reset_and_prerun_are_optional(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    solver.options = {"run_script": "run.sh"}
+    assert default_plugin.gymprecice_prepare_case(solver) is True
+    assert default_plugin.gymprecice_reset_case(solver) is True
+    assert not (solver.run_dir / "prerun.count").exists()
+    assert not (solver.run_dir / "reset.count").exists()
+
+
+def test_missing_script_names_the_file_and_the_fix(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path, reset_script="reset-typo.sh")
+    with pytest.raises(CaseError) as info:
+        default_plugin.gymprecice_prepare_case(solver)
+    message = str(info.value)
+    assert "reset-typo.sh" in message and str(solver.source_dir) in message
+    assert "physics_simulation_engine.reset_script" in message
+    # checked before the prerun: nothing ran
+    assert not (solver.run_dir / "prerun.count").exists()
+
+
+def test_missing_run_script_option_is_a_config_error(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    solver.options = {"reset_script": "reset.sh"}
+    with pytest.raises(ConfigError, match="run_script"):
+        default_plugin.gymprecice_prepare_case(solver)
+
+
+def test_non_executable_script_says_chmod(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    _script(solver.run_dir / "run.sh", RUN, executable=False)
+    with pytest.raises(CaseError) as info:
+        default_plugin.gymprecice_launch_solver(solver)
+    assert f"chmod +x {solver.source_dir / 'run.sh'}" in str(info.value)
+
+
+def test_interpreter_option_runs_non_executable_scripts(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path, interpreter="bash")
+    _script(solver.run_dir / "prerun.sh", PRERUN, executable=False)
+    assert default_plugin.gymprecice_prepare_case(solver) is True
+    assert (solver.run_dir / "prerun.count").read_text() == "prerun\n"
+    spec = default_plugin.gymprecice_launch_solver(solver)
+    assert spec.argv == ["bash", str(solver.run_dir / "run.sh")]
+
+
+def test_script_without_shebang_runs_under_sh(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    _script(solver.run_dir / "run.sh", "echo plain > plain.out\n")
+    spec = default_plugin.gymprecice_launch_solver(solver)
+    assert spec.argv == ["sh", str(solver.run_dir / "run.sh")]
+    run_to_completion("fluid", spec, timeout=30)
+    assert (solver.run_dir / "plain.out").read_text() == "plain\n"
+
+
+def test_windows_line_endings_are_reported(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    _script(solver.run_dir / "run.sh", "#!/bin/sh\r\necho hi\r\n")
+    with pytest.raises(CaseError, match="dos2unix"):
+        default_plugin.gymprecice_launch_solver(solver)
+
+
+def test_failing_prerun_raises_with_the_log(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    _script(solver.run_dir / "prerun.sh", "#!/bin/sh\necho 'mesh generation failed'\nexit 3\n")
+    with pytest.raises(SolverCrashedError) as info:
+        default_plugin.gymprecice_prepare_case(solver)
+    assert info.value.returncode == 3
+    assert "mesh generation failed" in str(info.value)
+
+
+def test_reset_timeout_option(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path, reset_timeout=0.5)
+    _script(solver.run_dir / "reset.sh", "#!/bin/sh\nsleep 30\n")
+    with pytest.raises(SolverTimeoutError):
+        default_plugin.gymprecice_reset_case(solver)
+
+
+@pytest.mark.parametrize("bad", [0, -1, "soon"])
+def test_bad_timeout_is_a_config_error(tmp_path: Path, bad) -> None:
+    solver = _script_solver(tmp_path, reset_timeout=bad)
+    with pytest.raises(ConfigError, match="reset_timeout"):
+        default_plugin.gymprecice_reset_case(solver)
+
+
+# -- kind "command" ---------------------------------------------------------------------------
+
+
+def test_command_placeholders_and_steps(tmp_path: Path) -> None:
+    solver = _command_solver(
+        tmp_path,
+        argv=[
+            "{python}",
+            "-m",
+            "gymprecice.testing.partner",
+            "--participant",
+            "{participant}",
+            "--config",
+            "{precice_config}",
+            '{"json": {"braces": "kept"}}',
+            "{run_dir}/{solver}-{env_index}",
+        ],
+    )
+    solver.precice_config_file = tmp_path / "env_0" / "precice-config.xml"
+    assert default_plugin.gymprecice_prepare_case(solver) is True
+    assert default_plugin.gymprecice_reset_case(solver) is True
+    assert default_plugin.gymprecice_reset_case(solver) is True
+    assert (solver.run_dir / "prepared.txt").read_text() == "p"
+    assert (solver.run_dir / "reset.txt").read_text() == "rr"
+    spec = default_plugin.gymprecice_launch_solver(solver)
+    assert list(spec.argv) == [
+        sys.executable,
+        "-m",
+        "gymprecice.testing.partner",
+        "--participant",
+        "Fluid",
+        "--config",
+        str(solver.precice_config_file),
+        '{"json": {"braces": "kept"}}',
+        f"{solver.run_dir}/partner-0",
+    ]
+    assert spec.cwd == solver.run_dir
+    assert spec.env["GYMPRECICE_PRECICE_CONFIG"] == str(solver.precice_config_file)
+
+
+def test_command_string_is_split_like_a_shell(tmp_path: Path) -> None:
+    solver = _command_solver(tmp_path, argv="{python} -c 'print(1)'")
+    spec = default_plugin.gymprecice_launch_solver(solver)
+    assert list(spec.argv) == [sys.executable, "-c", "print(1)"]
+
+
+def test_command_env_and_log_name(tmp_path: Path) -> None:
+    solver = _command_solver(tmp_path, env={"OMP_NUM_THREADS": 1}, log_name="partner.log")
+    spec = default_plugin.gymprecice_launch_solver(solver)
+    assert spec.env["OMP_NUM_THREADS"] == "1"
+    assert spec.log_name == "partner.log"
+
+
+def test_command_without_argv_is_a_config_error(tmp_path: Path) -> None:
+    solver = _command_solver(tmp_path)
+    del solver.options["argv"]
+    with pytest.raises(ConfigError, match=r"options\.argv"):
+        default_plugin.gymprecice_prepare_case(solver)
+
+
+@pytest.mark.parametrize("argv", [[["nested"]], {"a": 1}, [None]])
+def test_command_argv_must_be_strings(tmp_path: Path, argv) -> None:
+    solver = _command_solver(tmp_path, argv=argv)
+    with pytest.raises(ConfigError, match="list of"):
+        default_plugin.gymprecice_launch_solver(solver)
+
+
+def test_unknown_program_is_reported_at_prepare(tmp_path: Path) -> None:
+    solver = _command_solver(tmp_path, reset_argv=["no-such-program-gymprecice", "x"])
+    with pytest.raises(CaseError, match="no-such-program-gymprecice"):
+        default_plugin.gymprecice_prepare_case(solver)
+    assert not (solver.run_dir / "prepared.txt").exists()
+
+
+def test_relative_program_is_looked_up_in_run_dir(tmp_path: Path) -> None:
+    solver = _command_solver(tmp_path, argv=["./solve", "--fast"])
+    with pytest.raises(CaseError, match="solve"):
+        default_plugin.gymprecice_launch_solver(solver)
+    _script(solver.run_dir / "solve", "#!/bin/sh\n")
+    assert list(default_plugin.gymprecice_launch_solver(solver).argv) == ["./solve", "--fast"]
+
+
+# -- the other hooks --------------------------------------------------------------------------
+
+
+def test_declares_both_kinds() -> None:
+    assert set(default_plugin.gymprecice_solver_kinds()) == {"script", "command"}
+
+
+def test_foreign_kinds_are_left_alone(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    solver.kind = "openfoam"
+    assert default_plugin.gymprecice_prepare_case(solver) is None
+    assert default_plugin.gymprecice_reset_case(solver) is None
+    assert default_plugin.gymprecice_launch_solver(solver) is None
+    assert default_plugin.gymprecice_check_solver(solver, "bash: foo: command not found") is None
+    assert not (solver.run_dir / "prerun.count").exists()
+
+
+def test_check_solver_explains_shell_failures(tmp_path: Path) -> None:
+    solver = _script_solver(tmp_path)
+    assert default_plugin.gymprecice_check_solver(solver, "Time = 0.1\nTime = 0.2\n") is None
+    message = default_plugin.gymprecice_check_solver(
+        solver, "starting\n./run.sh: line 3: pimpleFoam: command not found\n"
+    )
+    assert message is not None
+    assert "pimpleFoam: command not found" in message and "not on PATH" in message
+
+
+def test_doctor_reports_bash(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("PATH", str(tmp_path))
+    (check,) = default_plugin.gymprecice_doctor_checks()
+    assert check.name == "bash" and check.ok is False and "install bash" in check.advice
+    monkeypatch.setenv("PATH", os.defpath)
+    (check,) = default_plugin.gymprecice_doctor_checks()
+    assert check.ok is True
