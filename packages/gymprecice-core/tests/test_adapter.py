@@ -116,11 +116,17 @@ def test_solver_exiting_1_mid_episode_is_reported_with_log_tail(
     make_case, base_config, tmp_path, monkeypatch
 ):
     monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "1")
-    crash = "import sys, time\nprint('solver says: divergence detected', flush=True)\ntime.sleep(1)\nsys.exit(1)"
+    go = tmp_path / "go"
+    crash = (
+        "import os, sys, time\n"
+        f"while not os.path.exists({str(go)!r}): time.sleep(0.01)\n"
+        "print('solver says: divergence detected', flush=True)\nsys.exit(1)"
+    )
     case = _case(make_case, base_config, tmp_path, argv=["{python}", "-c", crash])
     env = JetEnv(case, 3, run_root=tmp_path / "runs")
     env.reset()
     env.step(np.array([0.1]))
+    go.touch()  # the solver dies mid-episode, while the next advance blocks
     started = time.monotonic()
     with pytest.raises(SolverCrashedError) as info:
         env.step(np.array([0.1]))
@@ -130,6 +136,7 @@ def test_solver_exiting_1_mid_episode_is_reported_with_log_tail(
     assert "divergence detected" in err.log_tail and "divergence detected" in str(err)
     assert not env._episode_active
     monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "-1")
+    go.unlink()
     env.reset()  # the next reset starts clean
     env.step(np.array([0.1]))
     env.close()

@@ -55,6 +55,7 @@ class _Session:
                 "(pyprecice); or run against the test double with "
                 "precice.library = 'gymprecice.testing.fake_precice'.",
             ) from None
+        _say(f"using {library}; creating participant {request['participant']!r}")
         self.participant = precice.Participant(request["participant"], request["config_file"], 0, 1)
         self.vertex_ids: dict[str, np.ndarray] = {}
         for mesh, coords in request["meshes"].items():
@@ -64,7 +65,9 @@ class _Session:
         t0 = time.perf_counter()
         if self.participant.requires_initial_data():
             self._write(request["initial_data"])
+        _say("initializing (waits for the other participants to connect)")
         self.participant.initialize()
+        _say("initialized")
         self.precice_s += time.perf_counter() - t0
         self.time = 0.0
         self.windows = 0
@@ -162,9 +165,15 @@ def serve(conn: Connection) -> int:
         conn.send(reply)
 
 
+def _say(message: str) -> None:
+    """One line in the worker's log: the env counts log growth as progress."""
+    print(f"[gymprecice worker {os.getpid()}] {message}", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     _die_with_parent()
+    _say("started")
     conn = Connection(int(argv[0]))
     return serve(conn)
 

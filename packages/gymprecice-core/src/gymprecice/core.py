@@ -226,7 +226,7 @@ class Adapter(gym.Env):
             "in your env's __init__"
         )
 
-    def open_output(self, solver: str, name: str, **options: Any) -> OutputReader:
+    def open_output(self, solver: str, name: str, /, **options: Any) -> OutputReader:
         """An incremental reader of a solver output (closed by core at reset and close)."""
         self._ensure_prepared()
         if solver not in self._solvers:

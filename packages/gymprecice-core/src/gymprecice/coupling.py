@@ -34,7 +34,7 @@ from gymprecice.errors import (
     SolverError,
     SolverTimeoutError,
 )
-from gymprecice.processes import PidRegistry, SolverProcess
+from gymprecice.processes import PidRegistry, SolverProcess, read_tail
 
 DataKey = tuple[str, str]
 #: how long a solver that exited while we wait may still be followed by the worker's reply
@@ -102,11 +102,14 @@ class WorkerProcess:
             self.registry.remove(self.pid)
             self.registry = None
 
-    def log_tail(self, lines: int = 30) -> str:
+    def log_size(self) -> int:
         try:
-            return "\n".join(self.log_path.read_text(errors="replace").splitlines()[-lines:])
+            return self.log_path.stat().st_size
         except OSError:
-            return ""
+            return 0
+
+    def log_tail(self, lines: int = 30) -> str:
+        return read_tail(self.log_path, lines)
 
 
 class CouplingSession:
@@ -178,7 +181,7 @@ class CouplingSession:
             self._fail_worker_gone(op)
         start = time.monotonic()
         last_progress = start
-        log_sizes = [s.log_size() for s in self.solvers]
+        log_sizes = self._log_sizes()
         exited_at: float | None = None
         watched: list[Any] = [self.worker.conn, self.worker, *self.solvers]
         while True:
@@ -207,7 +210,7 @@ class CouplingSession:
                     "exited (status 0) while the controller was still waiting for it",
                     op,
                 )
-            sizes = [s.log_size() for s in self.solvers]
+            sizes = self._log_sizes()
             if sizes != log_sizes:
                 log_sizes = sizes
                 last_progress = now
@@ -231,6 +234,10 @@ class CouplingSession:
                     f"did not finish '{op}' within {timeout:g} s",
                     op,
                 )
+
+    def _log_sizes(self) -> list[int]:
+        """Sizes of every log of the episode: growth in any of them counts as progress."""
+        return [self.worker.log_size(), *(s.log_size() for s in self.solvers)]
 
     def _quietest(self) -> SolverProcess | None:
         return self.solvers[0] if self.solvers else None
