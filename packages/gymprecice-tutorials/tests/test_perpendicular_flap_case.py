@@ -117,11 +117,6 @@ def copy_case(tmp_path: Path) -> Path:
     return case
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="load_config checks the controller's meshes; solver meshes are checked by the "
-    "solver plugins when the env prepares its case (see the deal.II plugin test below)",
-)
 def test_a_solid_mesh_missing_from_the_xml_fails_load_config_naming_both_files(
     tmp_path: Path,
 ) -> None:

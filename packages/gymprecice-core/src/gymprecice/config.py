@@ -165,13 +165,18 @@ class GymPreciceConfig:
 
 
 def load_config(
-    source: str | Path | Mapping[str, Any], *, case_dir: str | Path | None = None
+    source: str | Path | Mapping[str, Any],
+    *,
+    case_dir: str | Path | None = None,
+    validate_cases: bool = True,
 ) -> GymPreciceConfig:
     """Read and check a configuration.
 
     ``source`` is a path to ``gymprecice-config.json``, a case directory holding one, or an
     already parsed dict (then ``case_dir`` says where relative paths point; default: the
     working directory). Raises :class:`ConfigError` naming the file and key at fault.
+    With ``validate_cases`` the installed plugins also check each solver's case files
+    against the preCICE XML (see :func:`check_solver_cases`).
     """
     file: Path | None
     if isinstance(source, Mapping):
@@ -209,7 +214,7 @@ def load_config(
     precice = load_precice_config(precice_file)
     solvers = _solvers(model, base, where)
     interfaces = _cross_check(model, precice, solvers, where)
-    return GymPreciceConfig(
+    config = GymPreciceConfig(
         file=file,
         case_dir=base,
         model=model,
@@ -218,6 +223,43 @@ def load_config(
         solvers=solvers,
         interfaces=interfaces,
     )
+    if validate_cases:
+        check_solver_cases(config)
+    return config
+
+
+def check_solver_cases(config: GymPreciceConfig) -> None:
+    """Ask each solver's plugin to check its pristine case against the preCICE XML.
+
+    Plugins know their own files (a deal.II ``parameters.prm`` names its mesh and data);
+    asking them here makes a mismatch fail at load time with every file named.
+    """
+    from gymprecice.plugins import get_plugin_manager
+    from gymprecice.solver import SolverContext
+
+    hook = get_plugin_manager().hook
+    for spec in config.solvers.values():
+        source = config.case_dir / spec.path
+        context = SolverContext(
+            name=spec.name,
+            kind=spec.kind,
+            run_dir=source,
+            source_dir=source,
+            env_dir=config.case_dir,
+            participant=spec.participant,
+            options=dict(spec.options),
+            config_file=config.file,
+            precice=config.precice,
+            precice_config_file=config.precice_file,
+        )
+        problems = [
+            p for answer in hook.gymprecice_validate_case(solver=context) for p in answer or ()
+        ]
+        if problems:
+            raise ConfigError(
+                f"{config.where()}: solver {spec.name!r} ({spec.kind}) does not agree with "
+                f"{config.precice_file}:\n  " + "\n  ".join(problems)
+            )
 
 
 def check_solver_kinds(config: GymPreciceConfig, kinds: Mapping[str, Any]) -> None:

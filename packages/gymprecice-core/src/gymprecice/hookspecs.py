@@ -67,6 +67,18 @@ def gymprecice_solver_kinds() -> Mapping[str, str]:
     """
 
 
+@hookspec
+def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
+    """Check the pristine case of a solver against the preCICE configuration; write nothing.
+
+    Called when a configuration is loaded (``Adapter(...)``, ``gymprecice check``), before
+    any run directory exists: ``solver.run_dir`` is the pristine case here. Return a list of
+    problems, each naming the file at fault and the fix (an empty list when all is well), or
+    ``None`` for solvers of other kinds. Catches, for example, a solver mesh or data name
+    that the preCICE XML does not define, which would otherwise surface only at run time.
+    """
+
+
 @hookspec(firstresult=True)
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     """Prepare the solver's case in ``solver.run_dir`` once per environment.

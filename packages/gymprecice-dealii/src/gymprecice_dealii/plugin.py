@@ -92,6 +92,18 @@ def gymprecice_solver_kinds() -> dict[str, str]:
 
 
 @hookimpl
+def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
+    """Check ``parameters.prm`` of the pristine case against the preCICE XML."""
+    if solver.kind != KIND:
+        return None
+    try:
+        check_against_precice(solver, _read_parameters(solver))
+    except (CaseError, ConfigError) as exc:
+        return [str(exc)]
+    return []
+
+
+@hookimpl
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     if solver.kind != KIND:
         return None
