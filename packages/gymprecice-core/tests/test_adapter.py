@@ -155,7 +155,7 @@ def test_hung_solver_is_killed_after_the_progress_timeout(
     started = time.monotonic()
     with pytest.raises(SolverTimeoutError, match="no progress for 3 s"):
         env.step(np.array([0.0]))
-    assert 2.5 < time.monotonic() - started < 8
+    assert 2.5 < time.monotonic() - started < 20
     assert not any(_alive(pid) for pid in pids)
     env.close()
 

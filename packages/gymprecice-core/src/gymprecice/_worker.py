@@ -60,6 +60,9 @@ class _Session:
         self.vertex_ids: dict[str, np.ndarray] = {}
         for mesh, coords in request["meshes"].items():
             self.vertex_ids[mesh] = self.participant.set_mesh_vertices(mesh, coords)
+        direct: dict[str, Any] = request.get("direct", {})
+        for mesh, region in direct.items():
+            self.participant.set_mesh_access_region(mesh, np.asarray(region, dtype=float))
         self.read_keys: list[DataKey] = [tuple(k) for k in request["read"]]
         self.precice_s = 0.0
         t0 = time.perf_counter()
@@ -68,6 +71,11 @@ class _Session:
         _say("initializing (waits for the other participants to connect)")
         self.participant.initialize()
         _say("initialized")
+        self.coordinates: dict[str, np.ndarray] = {}
+        for mesh in direct:
+            ids, coords = self.participant.get_mesh_vertex_ids_and_coordinates(mesh)
+            self.vertex_ids[mesh] = ids
+            self.coordinates[mesh] = coords
         self.precice_s += time.perf_counter() - t0
         self.time = 0.0
         self.windows = 0
@@ -145,7 +153,7 @@ def serve(conn: Connection) -> int:
         try:
             if op == "init":
                 session = _Session(request)
-                reply: Any = ("ok", session.state())
+                reply: Any = ("ok", session.state(coordinates=session.coordinates))
             elif op == "advance":
                 assert session is not None, "advance before init"
                 reply = ("ok", session.advance(request["writes"]))

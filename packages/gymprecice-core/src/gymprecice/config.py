@@ -62,6 +62,8 @@ class ControllerSection(_Strict):
     write_to: dict[str, DataNames] = Field(default_factory=dict)
     #: interface name -> controller mesh name, where the names differ
     meshes: dict[str, str] = Field(default_factory=dict)
+    #: interface name -> [xmin, xmax, ymin, ymax(, zmin, zmax)] for direct-access meshes
+    access_regions: dict[str, list[float]] = Field(default_factory=dict)
 
 
 class PreciceSection(_Strict):
@@ -130,6 +132,8 @@ class InterfaceSpec:
     #: the solver participant coupled to this mesh and that participant's own mesh
     partner: str | None = None
     partner_mesh: str | None = None
+    #: a mesh received with api-access="true": its vertices come from the partner
+    direct: bool = False
 
 
 @dataclass
@@ -319,7 +323,7 @@ def resolve_interface_mesh(
 ) -> str:
     """Find the controller mesh behind an interface name (see docs: explicit, exact, token)."""
     participant = precice.participant(controller.participant)
-    provided = participant.provided_meshes
+    provided = [*participant.provided_meshes, *participant.api_access_meshes]
     if interface in controller.meshes:
         mesh = controller.meshes[interface]
         if mesh not in provided:
@@ -386,7 +390,8 @@ def _cross_check(
                     f"{_pairs(me.read_data, mesh)} on that mesh; add "
                     f'<read-data name="{data}" mesh="{mesh}"/> there or fix the JSON'
                 )
-        partner = precice.mapped_partner_mesh(mesh)
+        direct = mesh in me.api_access_meshes
+        partner = (me.received_meshes[mesh], mesh) if direct else precice.mapped_partner_mesh(mesh)
         interfaces[name] = InterfaceSpec(
             name=name,
             mesh=mesh,
@@ -395,6 +400,7 @@ def _cross_check(
             dimensions=precice.mesh(mesh).dimensions,
             partner=partner[0] if partner else None,
             partner_mesh=partner[1] if partner else None,
+            direct=direct,
         )
     if not interfaces:
         raise ConfigError(

@@ -114,6 +114,7 @@ class Adapter(gym.Env):
             DataRef(i.name, i.mesh, d) for i in self.config.interfaces.values() for d in i.read
         ]
         self._user_vertices: dict[str, np.ndarray] = {}
+        self._direct_geometry: dict[str, InterfaceGeometry] = {}
         self._geometry: dict[str, InterfaceGeometry] | None = None
         self._run: RunDirectory | None = None
         self._solvers: dict[str, SolverContext] = {}
@@ -203,13 +204,29 @@ class Adapter(gym.Env):
         """Vertices (and normals/areas where a plugin knows them) of every interface."""
         if self._geometry is None:
             self._geometry = {
-                name: self._find_geometry(spec) for name, spec in self.config.interfaces.items()
+                name: self._find_geometry(spec)
+                for name, spec in self.config.interfaces.items()
+                if not spec.direct or name in self._direct_geometry or name in self._user_vertices
             }
         return self._geometry
+
+    def _access_region(self, spec: InterfaceSpec) -> list[float]:
+        """Bounding box of a direct-access mesh: the user's, or all of space."""
+        region = self.config.controller.access_regions.get(spec.name)
+        if region is not None:
+            return list(region)
+        return [-1e300, 1e300] * spec.dimensions
 
     def _find_geometry(self, spec: InterfaceSpec) -> InterfaceGeometry:
         if spec.name in self._user_vertices:
             return InterfaceGeometry(self._user_vertices[spec.name])
+        if spec.direct:
+            if spec.name in self._direct_geometry:
+                return self._direct_geometry[spec.name]
+            raise ConfigError(
+                f"interface {spec.name!r} reads mesh {spec.mesh!r} through direct access: "
+                f"its vertices are defined by {spec.partner!r} and known after reset()"
+            )
         self._ensure_prepared()
         for solver in self._solvers.values():
             if spec.partner and solver.participant and solver.participant != spec.partner:
@@ -381,16 +398,20 @@ class Adapter(gym.Env):
 
     def _init_request(self, initial: dict[tuple[str, str], np.ndarray]) -> dict[str, Any]:
         assert self._run is not None
+        interfaces = self.config.interfaces.values()
         meshes = {
-            spec.mesh: self.interface_geometry[name].coordinates
-            for name, spec in self.config.interfaces.items()
+            spec.mesh: self.interface_geometry[spec.name].coordinates
+            for spec in interfaces
+            if not spec.direct
         }
+        direct = {spec.mesh: self._access_region(spec) for spec in interfaces if spec.direct}
         return {
             "cwd": str(self._run.root),
             "library": self._library(),
             "participant": self.config.participant,
             "config_file": str(self._run.precice_config_file),
             "meshes": meshes,
+            "direct": direct,
             "read": [(ref.mesh, ref.data) for ref in self._read_refs],
             "initial_data": initial,
         }
@@ -427,6 +448,12 @@ class Adapter(gym.Env):
         return values
 
     def _apply(self, state: CouplingState) -> None:
+        if state.coordinates:
+            for spec in self.config.interfaces.values():
+                if spec.mesh in state.coordinates:
+                    coords = np.asarray(state.coordinates[spec.mesh])
+                    self._direct_geometry[spec.name] = InterfaceGeometry(coords)
+            self._geometry = None
         self.time = state.time
         self.time_window = state.windows
         if state.dt:

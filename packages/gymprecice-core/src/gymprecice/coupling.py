@@ -53,6 +53,8 @@ class CouplingState:
     read: dict[DataKey, np.ndarray]
     precice_s: float
     advanced: int = 0
+    #: vertices of direct-access meshes, as the partner defined them (init only)
+    coordinates: dict[str, np.ndarray] | None = None
 
 
 class WorkerProcess:

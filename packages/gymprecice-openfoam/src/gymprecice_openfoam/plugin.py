@@ -1,1 +1,189 @@
-"""Hook implementations (filled in)."""
+"""gymprecice hooks for solver kind ``"openfoam"``: any OpenFOAM case with the preCICE adapter.
+
+Solver options (``physics_simulation_engine.solvers.<name>.options``):
+
+``application``      solver to run (default: controlDict's ``application``)
+``np``               processes; 1 = serial, >1 must match ``system/decomposeParDict``
+                     (default: the dictionary's ``numberOfSubdomains``, 1 without it)
+``prerun_end_time``  pre-run uncoupled to this time once; episodes start there
+``initial_time``     start episodes from this existing time directory instead
+``snapshots``        times (or ``{"train": [...], "eval": [...]}``) to draw episode starts
+                     from; ``eval_fraction`` (default 0.25) sets the fixed split
+``end_time``         controlDict ``endTime`` to use (default: long enough for the coupling)
+``solver_args``, ``mpirun_args``, ``prerun_args``, ``prerun_timeout``, ``openfoam_bashrc``
+
+Outputs (``env.open_output(solver, name, **options)``): ``"probes"`` (option ``field``),
+``"forces"`` (``which="force"|"moment"``), ``"forceCoeffs"``, or any function-object name
+under ``postProcessing`` with ``type`` one of those; ``object`` overrides the directory
+name and ``start_time`` the first start-time directory read (default: the episode's).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from gymprecice.errors import CaseError, ConfigError
+from gymprecice.hookspecs import hookimpl
+from gymprecice.solver import (
+    DoctorCheck,
+    InterfaceGeometry,
+    LaunchSpec,
+    OutputReader,
+    SolverContext,
+)
+from gymprecice_openfoam import case, checks, outputs
+from gymprecice_openfoam import mesh as meshes  # the geometry hook's argument is named mesh
+
+KIND = "openfoam"
+
+
+def _mine(solver: SolverContext) -> bool:
+    return solver.kind == KIND
+
+
+@hookimpl
+def gymprecice_solver_kinds() -> Mapping[str, str]:
+    return {KIND: "OpenFOAM case coupled through the OpenFOAM-preCICE adapter"}
+
+
+@hookimpl
+def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
+    if not _mine(solver):
+        return None
+    case.prepare_case(solver)
+    return True
+
+
+@hookimpl
+def gymprecice_reset_case(solver: SolverContext) -> bool | None:
+    if not _mine(solver):
+        return None
+    case.reset_case(solver)
+    return True
+
+
+@hookimpl
+def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
+    if not _mine(solver):
+        return None
+    return case.launch_spec(solver)
+
+
+def _log_name(solver: SolverContext) -> str | None:
+    state = solver.state.get("openfoam")
+    if isinstance(state, case.PreparedCase):
+        return case.log_name(state.application)
+    loaded = case.PreparedCase.load(Path(solver.run_dir))
+    return case.log_name(loaded.application) if loaded else None
+
+
+@hookimpl
+def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
+    if not _mine(solver):
+        return None
+    return checks.check_solver(solver, log_text, _log_name(solver))
+
+
+def _parallel(solver: SolverContext) -> bool | None:
+    state = solver.state.get("openfoam")
+    if not isinstance(state, case.PreparedCase):
+        state = case.PreparedCase.load(Path(solver.run_dir))
+    return None if state is None else state.np > 1
+
+
+@hookimpl
+def gymprecice_interface_geometry(
+    solver: SolverContext, interface: str, mesh: str
+) -> InterfaceGeometry | None:
+    if not _mine(solver):
+        return None
+    run_dir = Path(solver.run_dir)
+    if not (run_dir / "system" / "preciceDict").is_file():
+        return None
+    if meshes.read_precice_dict(run_dir).interface_for_mesh(mesh) is None:
+        return None
+    dimensions = 3
+    if solver.precice is not None and mesh in solver.precice.meshes:
+        dimensions = solver.precice.meshes[mesh].dimensions
+    return meshes.interface_geometry(
+        run_dir, mesh, dimensions=dimensions, parallel=_parallel(solver)
+    )
+
+
+_TYPES = {"probes": "probes", "forces": "forces", "forceCoeffs": "forceCoeffs"}
+
+
+def open_reader(
+    run_dir: Path, name: str, options: Mapping[str, Any], start_time: float | None
+) -> outputs.TableReader:
+    """Build the reader for output ``name`` of a case (see the module docstring)."""
+    opts = dict(options)
+    kind = opts.pop("type", None) or _TYPES.get(name)
+    directory = run_dir / "postProcessing" / str(opts.pop("object", name))
+    start = opts.pop("start_time", start_time)
+    if kind is None:
+        kind = _guess_type(directory)
+    if kind == "probes":
+        field = opts.pop("field", None) or _single_field(directory)
+        reader: outputs.TableReader = outputs.ProbesReader(directory, field, start_time=start)
+    elif kind == "forces":
+        reader = outputs.ForcesReader(
+            directory, which=str(opts.pop("which", "force")), start_time=start
+        )
+    elif kind == "forceCoeffs":
+        reader = outputs.ForceCoeffsReader(directory, start_time=start)
+    else:
+        raise ConfigError(
+            f"output {name!r}: unknown type {kind!r}; use 'probes', 'forces' or 'forceCoeffs' "
+            "(option type=...)"
+        )
+    if opts:
+        raise ConfigError(f"output {name!r}: unknown options {sorted(opts)}")
+    return reader
+
+
+def _guess_type(directory: Path) -> str | None:
+    for _, path in outputs.time_dirs(directory):
+        names = {p.name for p in path.iterdir()}
+        if names & {"force.dat", "forces.dat", "moment.dat"}:
+            return "forces"
+        if names & {"coefficient.dat", "forceCoeffs.dat"}:
+            return "forceCoeffs"
+        if names:
+            return "probes"
+    raise CaseError(
+        f"{directory}: no output yet to tell its type; pass type='probes'|'forces'|"
+        "'forceCoeffs' when opening it"
+    )
+
+
+def _single_field(directory: Path) -> str:
+    fields = sorted({p.name for _, d in outputs.time_dirs(directory) for p in d.iterdir()})
+    if len(fields) == 1:
+        return fields[0]
+    raise ConfigError(
+        f"{directory}: say which probed field to read (field=...); found {fields or 'none yet'}"
+    )
+
+
+OPENFOAM_OUTPUT_NAMES = ("probes", "forces", "forceCoeffs")
+
+
+@hookimpl(trylast=True)
+def gymprecice_open_output(
+    solver: SolverContext, name: str, options: Mapping[str, Any]
+) -> OutputReader | None:
+    # The readers are about a file format, not a solver: any solver that writes
+    # OpenFOAM-format function-object output (a test double's partner, a wrapper script of
+    # kind "script") can be read, as long as no plugin of its own kind answered first.
+    if not _mine(solver) and name not in OPENFOAM_OUTPUT_NAMES:
+        return None
+    start = solver.state.get("initial_time")
+    return open_reader(Path(solver.run_dir), name, options, start)
+
+
+@hookimpl
+def gymprecice_doctor_checks() -> list[DoctorCheck]:
+    return checks.doctor_checks()
