@@ -34,7 +34,7 @@ from gymprecice.errors import (
     SolverError,
     SolverTimeoutError,
 )
-from gymprecice.processes import PidRegistry, SolverProcess, read_tail
+from gymprecice.processes import PidRegistry, SolverProcess, describe_returncode, read_tail
 
 DataKey = tuple[str, str]
 #: how long a solver that exited while we wait may still be followed by the worker's reply
@@ -200,9 +200,7 @@ class CouplingSession:
             for solver in [s for s in self.solvers if s in ready]:
                 watched.remove(solver)
                 if solver.poll() not in (0, None):
-                    self._fail(
-                        SolverCrashedError, solver, f"exited with status {solver.poll()}", op
-                    )
+                    self._fail(SolverCrashedError, solver, describe_returncode(solver.poll()), op)
                 exited_at = exited_at or now
             if exited_at is not None and now - exited_at > EXIT_GRACE_S:
                 done = next(s for s in self.solvers if s.poll() is not None)
@@ -258,7 +256,7 @@ class CouplingSession:
         status = self.worker.poll()
         self.kill()
         raise SolverCrashedError(
-            f"env {self.env_index}: the coupling worker died during '{op}' (status {status})",
+            f"env {self.env_index}: the coupling worker {describe_returncode(status)} during '{op}'",
             env_index=self.env_index,
             solver="coupling-worker",
             returncode=status,
