@@ -185,3 +185,41 @@ def test_partner_hanging_mid_episode_times_out(tmp_path, library):
     fresh = FakeCylinderEnv(case, 0, run_root=tmp_path / "runs")
     _run_episode(fresh, 0.0)
     fresh.close()
+
+
+def test_env_passes_gymnasium_check_env_on_the_double(tmp_path):
+    from gymnasium.utils.env_checker import check_env
+
+    env = FakeCylinderEnv(_case(tmp_path, DOUBLE, max_time=0.05), 0, run_root=tmp_path / "runs")
+    check_env(env, skip_render_check=True)
+    env.close()
+
+
+def test_forgotten_close_leaves_no_process_behind(tmp_path):
+    case = _case(tmp_path, DOUBLE, max_time=10.0)
+    script = f"""
+import sys
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+from test_adapter_coupled import FakeCylinderEnv
+env = FakeCylinderEnv({str(case)!r}, 0, run_root={str(tmp_path / "runs")!r})
+env.reset()
+print(" ".join(str(p.pid) for p in env._session.solvers), env._session.worker.pid, flush=True)
+raise SystemExit(3)  # exits without env.close()
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 3, done.stderr
+    pids = [int(p) for p in done.stdout.split()]
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(pid) for pid in pids):
+        time.sleep(0.1)
+    assert not any(_alive(pid) for pid in pids)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

@@ -18,7 +18,12 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-DISTRIBUTIONS = ["gymprecice-core", "gymprecice-openfoam", "gymprecice-dealii", "gymprecice-tutorials"]
+DISTRIBUTIONS = [
+    "gymprecice-core",
+    "gymprecice-openfoam",
+    "gymprecice-dealii",
+    "gymprecice-tutorials",
+]
 
 pytestmark = pytest.mark.slow
 
@@ -29,7 +34,18 @@ def wheels(tmp_path_factory) -> dict[str, Path]:
     built = {}
     for dist in DISTRIBUTIONS:
         subprocess.run(
-            [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(out), str(ROOT / "packages" / dist)],
+            [
+                sys.executable,
+                "-m",
+                "pip",
+                "wheel",
+                "--no-deps",
+                "--no-build-isolation",
+                "-q",
+                "-w",
+                str(out),
+                str(ROOT / "packages" / dist),
+            ],
             check=True,
             cwd=out,
         )
@@ -62,7 +78,15 @@ def test_wheels_install_into_a_fresh_venv_and_work_outside_the_repo(wheels, tmp_
     python = env_dir / "bin" / "python"
     # torch is not needed by these distributions without the [train] extra.
     subprocess.run(
-        [str(python), "-m", "pip", "install", "-q", "--disable-pip-version-check", *map(str, wheels.values())],
+        [
+            str(python),
+            "-m",
+            "pip",
+            "install",
+            "-q",
+            "--disable-pip-version-check",
+            *map(str, wheels.values()),
+        ],
         check=True,
     )
     outside = tmp_path / "elsewhere"

@@ -59,6 +59,8 @@ def test_other_kinds_are_left_to_other_plugins(pm, tmp_path):
 def test_openfoam_format_outputs_of_any_solver_kind_can_be_read(pm, tmp_path):
     # e.g. a scripted partner of kind "command" that writes OpenFOAM-format probes
     other = _solver(tmp_path, kind="command")
+    assert pm.hook.gymprecice_open_output(solver=other, name="probes", options={}) is None
+    other.options = {"outputs": "openfoam"}
     probes = other.run_dir / "postProcessing" / "probes" / "0"
     probes.mkdir(parents=True)
     (probes / "p").write_text("# Probe 0 (0 0 0)\n#  Time  0\n0.1  2.5\n")

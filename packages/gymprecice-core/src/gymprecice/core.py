@@ -18,8 +18,10 @@ a terminal state).
 
 from __future__ import annotations
 
+import atexit
 import os
 import time
+import weakref
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -41,7 +43,7 @@ from gymprecice.processes import PidRegistry, SolverProcess
 from gymprecice.rundir import RunDirectory, create_run_directory
 from gymprecice.solver import InterfaceGeometry, OutputReader, SolverContext
 
-__all__ = ["Adapter", "DataRef", "DataDict"]
+__all__ = ["Adapter", "DataDict", "DataRef", "Timing"]
 
 LIBRARY_ENV_VAR = "GYMPRECICE_PRECICE_LIBRARY"
 
@@ -76,6 +78,54 @@ class DataDict(dict):
         if len(matches) == 1:
             return super().__getitem__(matches[0])
         raise KeyError(key)
+
+
+class Timing(Mapping[str, float]):
+    """Seconds spent in one step or reset: ``precice_s``, ``wait_s``, ``env_s``, ``step_s``.
+
+    Read it like a dict. Two timings compare equal when they measure the same things:
+    wall-clock figures describe the machine, not the environment's state, so Gymnasium's
+    determinism check (which compares the infos of two identical steps) must not see them.
+    """
+
+    __slots__ = ("_seconds",)
+
+    def __init__(self, seconds: Mapping[str, float]) -> None:
+        self._seconds = dict(seconds)
+
+    def __getitem__(self, key: str) -> float:
+        return self._seconds[key]
+
+    def __iter__(self):
+        return iter(self._seconds)
+
+    def __len__(self) -> int:
+        return len(self._seconds)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Timing) and self._seconds.keys() == other._seconds.keys()
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return f"Timing({self._seconds!r})"
+
+    def __reduce__(self):
+        return (Timing, (self._seconds,))
+
+
+#: Envs with an episode possibly running, ended at interpreter exit (see Adapter.close).
+_LIVE_ENVS: weakref.WeakSet[Adapter] = weakref.WeakSet()
+
+
+@atexit.register
+def _end_live_episodes() -> None:
+    """A script that forgets ``env.close()`` (or dies on an exception) leaves no solver."""
+    for env in list(_LIVE_ENVS):
+        try:
+            env.close()
+        except Exception:
+            pass
 
 
 class Adapter(gym.Env):
@@ -331,6 +381,7 @@ class Adapter(gym.Env):
             raise
         self._episode_active = True
         self._episode_over = False
+        _LIVE_ENVS.add(self)
         self._apply(state)
         obs = self._get_observation(self._last_read, self.read_var_list)
         info = self._info(state, {"reset_s": time.perf_counter() - started})
@@ -381,6 +432,7 @@ class Adapter(gym.Env):
         if self._closed:
             return
         self._closed = True
+        _LIVE_ENVS.discard(self)
         self._end_episode(abort=True)
         self._close_readers()
         self._close_external_resources()
@@ -473,7 +525,7 @@ class Adapter(gym.Env):
             "time": state.time,
             "time_window": state.windows,
             "env_index": self.env_index,
-            "timing": timing,
+            "timing": Timing(timing),
         }
 
     def _health_check(self, process: SolverProcess) -> str | None:

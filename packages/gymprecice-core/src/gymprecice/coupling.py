@@ -71,6 +71,8 @@ class WorkerProcess:
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 start_new_session=True,
+                # the worker needs no plugins: skip loading them (a faster reset)
+                env={**os.environ, "GYMPRECICE_DISABLE_PLUGINS": "1"},
             )
         child.close()
         self.conn = Connection(parent.detach())

@@ -168,17 +168,14 @@ def _single_field(directory: Path) -> str:
     )
 
 
-OPENFOAM_OUTPUT_NAMES = ("probes", "forces", "forceCoeffs")
-
-
 @hookimpl(trylast=True)
 def gymprecice_open_output(
     solver: SolverContext, name: str, options: Mapping[str, Any]
 ) -> OutputReader | None:
-    # The readers are about a file format, not a solver: any solver that writes
-    # OpenFOAM-format function-object output (a test double's partner, a wrapper script of
-    # kind "script") can be read, as long as no plugin of its own kind answered first.
-    if not _mine(solver) and name not in OPENFOAM_OUTPUT_NAMES:
+    # The readers are about a file format, not a solver: a solver of another kind that
+    # writes OpenFOAM-format function-object output (a test double's partner, a wrapper
+    # script) opts in with options {"outputs": "openfoam"}.
+    if not _mine(solver) and solver.options.get("outputs") != "openfoam":
         return None
     start = solver.state.get("initial_time")
     return open_reader(Path(solver.run_dir), name, options, start)

@@ -1,0 +1,204 @@
+"""Core overheads, printed side by side with a bare preCICE loop in one run.
+
+    python benchmarks/bench_core.py [--windows 300] [--concurrent 2]
+
+For each available library (the test double always; real pyprecice when importable):
+
+* step: one ``Adapter.step()`` per time window against a bare read/write/advance loop of
+  the same library, same meshes, same data and the same null partner process. The adapter
+  overhead is the difference (goal: <= 100 us through the double, <= 1.2x with real preCICE).
+* reset: ``Adapter.reset()`` against a bare start (launch the partner, create the
+  participant, initialize).
+* concurrent resets: N envs resetting at once (each in its own process, as under a vector
+  env) against one reset (goal: <= 1.2x).
+
+Figures depend on the machine's load; run it on an idle machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from gymprecice.core import Adapter
+from gymprecice.testing import case_config
+from gymprecice.testing.flows import fake_cylinder_geometry
+
+DOUBLE = "gymprecice.testing.fake_precice"
+PARTNER = ["-m", "gymprecice.testing.partner", "--flow", "gymprecice.testing.flows:NullFlow"]
+
+
+class BenchEnv(Adapter):
+    def __init__(self, options, idx=0, **kwargs):
+        super().__init__(options, idx, **kwargs)
+        geometry = fake_cylinder_geometry()
+        self._coords = {name: geometry[name].coordinates for name in ("jet1", "jet2")}
+        for name, coords in self._coords.items():
+            self.set_interface_vertices(name, coords)
+        self._zero = {name: np.zeros_like(c) for name, c in self._coords.items()}
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+
+    def _get_action(self, action, write_var_list):
+        return self._zero
+
+    def _get_observation(self, read_data, read_var_list):
+        return read_data["cylinder"]
+
+    def _get_reward(self):
+        return 0.0
+
+
+def make_case(root: Path, library: str, windows: int) -> Path:
+    case = root / "case"
+    (case / "fluid").mkdir(parents=True, exist_ok=True)
+    case_config("fake_cylinder", case, max_time=0.01 * windows)
+    argv = ["{python}", *PARTNER, "--config", "{precice_config}", "--participant", "Fluid"]
+    config = {
+        "precice": {"library": library},
+        "physics_simulation_engine": {
+            "solvers": {
+                "fluid": {
+                    "kind": "command",
+                    "participant": "Fluid",
+                    "options": {"argv": [*argv, "--library", library]},
+                }
+            }
+        },
+        "controller": {
+            "write_to": {"jet1": "Velocity", "jet2": "Velocity"},
+            "read_from": {"cylinder": "Pressure"},
+        },
+    }
+    (case / "gymprecice-config.json").write_text(json.dumps(config))
+    return case
+
+
+def adapter_run(case: Path, run_root: Path) -> tuple[float, list[float]]:
+    env = BenchEnv(case, 0, run_root=run_root)
+    started = time.perf_counter()
+    env.reset(seed=0)
+    reset_s = time.perf_counter() - started
+    steps, truncated = [], False
+    action = np.zeros(1, dtype=np.float32)
+    while not truncated:
+        t0 = time.perf_counter()
+        _, _, _, truncated, _ = env.step(action)
+        steps.append(time.perf_counter() - t0)
+    env.close()
+    return reset_s, steps[:-1]  # the last step also ends the episode (finalize, exits)
+
+
+def bare_run(case: Path, library: str, work: Path) -> tuple[float, list[float]]:
+    """The same coupling without gymprecice: partner launched by hand, loop in-process."""
+    import importlib
+
+    precice = importlib.import_module(library)
+    work.mkdir(parents=True, exist_ok=True)
+    config = case_config("fake_cylinder", work, max_time=None, exchange_directory=work / "x")
+    xml = (case / "precice-config.xml").read_text()
+    max_time = xml.split('<max-time value="')[1].split('"')[0]
+    config.write_text(config.read_text().replace('<max-time value="1.0"', f'<max-time value="{max_time}"'))
+    started = time.perf_counter()
+    partner = subprocess.Popen(
+        [sys.executable, *PARTNER, "--config", str(config), "--participant", "Fluid", "--library", library],
+        cwd=work,
+        stdout=subprocess.DEVNULL,
+    )
+    participant = precice.Participant("Controller", str(config), 0, 1)
+    geometry = fake_cylinder_geometry()
+    ids = {}
+    for name in ("jet1", "jet2"):
+        ids[name] = participant.set_mesh_vertices(f"Controller-Mesh-{name}", geometry[name].coordinates)
+    participant.set_mesh_access_region("Fluid-Mesh-cylinder", np.array([-1e300, 1e300] * 2))
+    participant.initialize()
+    cyl_ids, _ = participant.get_mesh_vertex_ids_and_coordinates("Fluid-Mesh-cylinder")
+    reset_s = time.perf_counter() - started
+    zero = {name: np.zeros((len(ids[name]), 2)) for name in ids}
+    steps = []
+    while participant.is_coupling_ongoing():
+        t0 = time.perf_counter()
+        dt = participant.get_max_time_step_size()
+        for name in ids:
+            participant.write_data(f"Controller-Mesh-{name}", "Velocity", ids[name], zero[name])
+        participant.advance(dt)
+        participant.read_data("Fluid-Mesh-cylinder", "Pressure", cyl_ids, 0.0)
+        steps.append(time.perf_counter() - t0)
+    participant.finalize()
+    partner.wait(timeout=30)
+    return reset_s, steps[:-1]
+
+
+def _reset_once(args: tuple[str, str, int]) -> float:
+    case, run_root, idx = args
+    env = BenchEnv(case, idx, run_root=run_root)
+    env.run_dir  # noqa: B018 - prepare outside the timed reset, as a vector env does at start-up
+    started = time.perf_counter()
+    env.reset(seed=idx)
+    elapsed = time.perf_counter() - started
+    env.close()
+    return elapsed
+
+
+def concurrent_resets(case: Path, run_root: Path, n: int) -> tuple[float, float]:
+    ctx = mp.get_context("forkserver")
+    with ctx.Pool(1) as pool:
+        one = pool.map(_reset_once, [(str(case), str(run_root / "one"), 0)])[0]
+    with ctx.Pool(n) as pool:
+        started = time.perf_counter()
+        pool.map(_reset_once, [(str(case), str(run_root / "many"), i) for i in range(n)])
+        many = time.perf_counter() - started
+    return one, many
+
+
+def _us(values: list[float]) -> str:
+    return f"{statistics.median(values) * 1e6:9.1f} us (median of {len(values)})"
+
+
+def real_precice_available() -> bool:
+    probe = subprocess.run([sys.executable, "-c", "import precice"], capture_output=True)
+    return probe.returncode == 0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--windows", type=int, default=300)
+    parser.add_argument("--concurrent", type=int, default=os.cpu_count() or 2)
+    args = parser.parse_args()
+    libraries = [DOUBLE] + (["precice"] if real_precice_available() else [])
+    if len(libraries) == 1:
+        print("real pyprecice not importable: only the test double is measured")
+    for library in libraries:
+        with tempfile.TemporaryDirectory() as tmp:
+            root = Path(tmp)
+            case = make_case(root, library, args.windows)
+            a_reset, a_steps = adapter_run(case, root / "runs")
+            b_reset, b_steps = bare_run(case, library, root / "bare")
+            overhead = statistics.median(a_steps) - statistics.median(b_steps)
+            print(f"\n== {library} ({args.windows} windows, null partner)")
+            print(f"  step   adapter {_us(a_steps)}   bare loop {_us(b_steps)}")
+            print(
+                f"         adapter overhead {overhead * 1e6:8.1f} us per step, "
+                f"ratio {statistics.median(a_steps) / statistics.median(b_steps):.2f}x"
+            )
+            print(f"  reset  adapter {a_reset * 1e3:8.1f} ms          bare start {b_reset * 1e3:8.1f} ms")
+            if library == DOUBLE:
+                one, many = concurrent_resets(case, root / "conc", args.concurrent)
+                print(
+                    f"  {args.concurrent} concurrent resets {many * 1e3:8.1f} ms vs one reset "
+                    f"{one * 1e3:8.1f} ms: {many / one:.2f}x"
+                )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,268 @@
+"""``gymprecice plot``: PNG figures of training and control runs.
+
+* ``reward.png``: episode return against environment steps during training, one faint line
+  per env and the running mean over all of them, from SB3's monitor files
+  (``<run>/monitor/*.monitor.csv``); a run without them (e.g. monitors deleted) falls back
+  to the ``rollout/ep_rew_mean`` curve of its TensorBoard logs (``<run>/tb``);
+* ``actions.png``: the action history of each evaluate / baseline / open-loop run;
+* ``coefficients.png``: drag and lift coefficients of each run against time, with the
+  baseline (``--baseline``) drawn as a reference: the figure of Rabault et al. that shows
+  whether the controller reduced drag.
+
+matplotlib runs with the non-interactive Agg backend: plotting must work on a headless
+machine and never open a window.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "load_coefficients",
+    "load_history",
+    "load_training_curve",
+    "plot_actions",
+    "plot_coefficients",
+    "plot_command",
+    "plot_reward",
+]
+
+
+# -- reading runs --------------------------------------------------------------------------
+
+
+def _read_csv(
+    path: Path, *, skip_comment: bool = False, fieldnames: Sequence[str] | None = None
+) -> list[dict[str, str]]:
+    """Rows of a CSV file; ``fieldnames`` are used when the file has no header line."""
+    with path.open(newline="") as handle:
+        lines = [line for line in handle if not (skip_comment and line.startswith("#"))]
+    if fieldnames and lines and not set(lines[0].strip().split(",")) & set(fieldnames):
+        return list(csv.DictReader(lines, fieldnames=list(fieldnames)))
+    return list(csv.DictReader(lines))
+
+
+def load_training_curve(run: Path) -> dict[str, Any] | None:
+    """Episode returns of a training run: ``{"per_env": [(steps, returns)], "source": ...}``.
+
+    Monitor files give every episode of every env: ``l`` (its length) summed over an env's
+    episodes is that env's step count; the global step of an episode is about ``n_envs``
+    times it, since the envs step together.
+    """
+    monitors = sorted((run / "monitor").glob("*.monitor.csv"))
+    per_env = []
+    for path in monitors:
+        rows = _read_csv(path, skip_comment=True, fieldnames=("r", "l", "t"))
+        if not rows:
+            continue
+        lengths = np.array([float(r["l"]) for r in rows])
+        returns = np.array([float(r["r"]) for r in rows])
+        per_env.append((np.cumsum(lengths) * len(monitors), returns))
+    if per_env:
+        return {"per_env": per_env, "source": "monitor"}
+    scalars = _tensorboard_scalars(run / "tb", "rollout/ep_rew_mean")
+    if scalars is not None:
+        return {"per_env": [scalars], "source": "tensorboard"}
+    return None
+
+
+def _tensorboard_scalars(directory: Path, tag: str) -> tuple[np.ndarray, np.ndarray] | None:
+    if not directory.is_dir():
+        return None
+    try:
+        from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    except ImportError:
+        return None
+    steps: list[float] = []
+    values: list[float] = []
+    for events in sorted(directory.rglob("events.out.tfevents.*")):
+        acc = EventAccumulator(str(events), size_guidance={"scalars": 0})
+        acc.Reload()
+        if tag not in acc.Tags().get("scalars", []):
+            continue
+        for event in acc.Scalars(tag):
+            steps.append(event.step)
+            values.append(event.value)
+    if not steps:
+        return None
+    order = np.argsort(steps, kind="stable")
+    return np.asarray(steps)[order], np.asarray(values)[order]
+
+
+def load_history(run: Path) -> dict[str, np.ndarray] | None:
+    """``history.csv`` of a rollout run as columns (``None`` when the run has none)."""
+    path = run / "history.csv"
+    if not path.is_file():
+        return None
+    rows = _read_csv(path)
+    if not rows:
+        return None
+    return {key: np.array([_float(r[key]) for r in rows]) for key in rows[0]}
+
+
+def load_coefficients(run: Path) -> dict[str, np.ndarray] | None:
+    """``coefficients.csv`` of a rollout run as columns (``None`` when empty or missing)."""
+    path = run / "coefficients.csv"
+    if not path.is_file():
+        return None
+    rows = _read_csv(path)
+    if not rows:
+        return None
+    return {key: np.array([_float(r[key]) for r in rows]) for key in rows[0]}
+
+
+def _float(text: str) -> float:
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+# -- figures -------------------------------------------------------------------------------
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _label(run: Path) -> str:
+    return f"{run.parent.name}/{run.name}" if run.parent.name else run.name
+
+
+def plot_reward(runs: Sequence[Path], target: Path) -> Path | None:
+    """``reward.png`` from every run that has training logs; ``None`` if none has."""
+    curves = [(run, load_training_curve(run)) for run in runs]
+    curves = [(run, c) for run, c in curves if c is not None]
+    if not curves:
+        return None
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for k, (run, curve) in enumerate(curves):
+        colour = f"C{k}"
+        if curve["source"] == "monitor":
+            steps = np.concatenate([s for s, _ in curve["per_env"]])
+            returns = np.concatenate([r for _, r in curve["per_env"]])
+            for s, r in curve["per_env"]:
+                ax.plot(s, r, color=colour, alpha=0.25, lw=0.8)
+            # mean over the envs' episodes ending at the same step, then a running mean
+            unique, inverse = np.unique(steps, return_inverse=True)
+            means = np.bincount(inverse, weights=returns) / np.bincount(inverse)
+            window = max(1, min(len(unique) // 5, 20))
+            smooth = np.convolve(means, np.ones(window) / window, mode="valid")
+            ax.plot(unique[window - 1 :], smooth, color=colour, lw=2, label=_label(run))
+        else:
+            s, r = curve["per_env"][0]
+            ax.plot(s, r, color=colour, lw=2, label=f"{_label(run)} (TensorBoard)")
+    ax.set_xlabel("environment steps (actions)")
+    ax.set_ylabel("episode return")
+    ax.set_title("Training")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    return _save(fig, plt, target / "reward.png")
+
+
+def plot_actions(runs: Sequence[Path], target: Path, baseline: Path | None = None) -> Path | None:
+    """``actions.png``: actions against time of every rollout run."""
+    series = [(run, load_history(run)) for run in [*runs, *([baseline] if baseline else [])]]
+    series = [(run, h) for run, h in series if h is not None]
+    if not series:
+        return None
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    for k, (run, history) in enumerate(series):
+        keys = sorted(key for key in history if key.startswith("action_"))
+        first = history["episode"] == history["episode"].min()
+        start = history.get("start", history["time"])[first]
+        # each action holds from its start to the next one's: a step drawn "post", closed
+        # at the end of the last action
+        times = np.append(start, history["time"][first][-1:])
+        for key in keys:
+            values = history[key][first]
+            label = _label(run) + (f" {key}" if len(keys) > 1 else "")
+            ax.step(times, np.append(values, values[-1:]), where="post", color=f"C{k}", label=label)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("action")
+    ax.set_title("Actions")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    return _save(fig, plt, target / "actions.png")
+
+
+def plot_coefficients(
+    runs: Sequence[Path], target: Path, baseline: Path | None = None
+) -> Path | None:
+    """``coefficients.png``: Cd and Cl of every run, the baseline dashed in black."""
+    series = [(run, load_coefficients(run)) for run in runs]
+    series = [(run, c) for run, c in series if c is not None]
+    reference = load_coefficients(baseline) if baseline is not None else None
+    if not series and reference is None:
+        return None
+    plt = _pyplot()
+    fig, (ax_d, ax_l) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
+    if reference is not None:
+        assert baseline is not None
+        first = reference["episode"] == reference["episode"].min()
+        ax_d.plot(reference["time"][first], reference["Cd"][first], "k--", lw=1, label="baseline")
+        ax_l.plot(reference["time"][first], reference["Cl"][first], "k--", lw=1, label="baseline")
+    for k, (run, coeffs) in enumerate(series):
+        if baseline is not None and run.resolve() == baseline.resolve():
+            continue
+        first = coeffs["episode"] == coeffs["episode"].min()
+        ax_d.plot(coeffs["time"][first], coeffs["Cd"][first], color=f"C{k}", label=_label(run))
+        ax_l.plot(coeffs["time"][first], coeffs["Cl"][first], color=f"C{k}", label=_label(run))
+    ax_d.set_ylabel("drag coefficient Cd")
+    ax_l.set_ylabel("lift coefficient Cl")
+    ax_l.set_xlabel("time (s)")
+    ax_d.set_title("Force coefficients")
+    for ax in (ax_d, ax_l):
+        ax.grid(alpha=0.3)
+    ax_d.legend(loc="best", fontsize="small")
+    return _save(fig, plt, target / "coefficients.png")
+
+
+def _save(fig: Any, plt: Any, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_command(args: argparse.Namespace) -> int:
+    """``gymprecice plot RUN... [--baseline RUN] [--out DIR]``."""
+    runs: list[Path] = list(args.runs)
+    missing = [
+        str(r) for r in [*runs, *([args.baseline] if args.baseline else [])] if not r.is_dir()
+    ]
+    if missing:
+        print(f"gymprecice plot: no such run directory: {', '.join(missing)}", file=sys.stderr)
+        return 1
+    target = args.out or runs[0] / "plots"
+    written = [
+        plot_reward(runs, target),
+        plot_actions(runs, target, args.baseline),
+        plot_coefficients(runs, target, args.baseline),
+    ]
+    written_paths = [p for p in written if p is not None]
+    if not written_paths:
+        print(
+            "gymprecice plot: nothing to draw: the runs have no monitor/TensorBoard logs "
+            "(train) and no history.csv / coefficients.csv (evaluate, baseline, open-loop)",
+            file=sys.stderr,
+        )
+        return 1
+    for path in written_paths:
+        print(path)
+    return 0

@@ -1,0 +1,1 @@
+"""Quickstart-v0 (see :mod:`.environment`)."""

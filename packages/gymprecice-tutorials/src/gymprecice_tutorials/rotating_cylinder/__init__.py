@@ -1,0 +1,1 @@
+"""RotatingCylinder-v0 (see :mod:`.environment`)."""

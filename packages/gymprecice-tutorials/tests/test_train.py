@@ -1,0 +1,283 @@
+"""``gymprecice train / evaluate / baseline / open-loop / plot`` end to end on the test double.
+
+The commands run as a user runs them (``python -m gymprecice ...`` in a working
+directory), with 2 parallel environments coupled through gymprecice's preCICE test double
+to the scripted fake flow. One recorded run (training, its resumption, three rollouts) is
+shared by the tests of this module.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import importlib.metadata
+import json
+import math
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gymprecice_tutorials import plots
+from gymprecice_tutorials.jet_cylinder.environment import MAX_FLOW_RATE
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+TRAIN = [
+    "train",
+    "quickstart",
+    "--double",
+    "--n-envs",
+    "2",
+    "--n-steps",
+    "8",
+    "--batch-size",
+    "8",
+    "--n-epochs",
+    "2",
+    "--episode-time",
+    "0.1",
+    "--net",
+    "16,16",
+    "--seed",
+    "7",
+    "--out",
+    "train",
+]
+
+
+def _cli(cwd: Path, *args: str, timeout: float = 240) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "gymprecice", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+def _ok(proc: subprocess.CompletedProcess[str]) -> str:
+    assert proc.returncode == 0, f"exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}"
+    return proc.stdout + proc.stderr
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    root = tmp_path_factory.mktemp("recorded")
+    started = time.monotonic()
+    first = _ok(_cli(root, *TRAIN, "--timesteps", "32"))
+    seconds = time.monotonic() - started
+    monitors_after_first = {
+        p.name: p.read_text() for p in sorted((root / "train" / "monitor").glob("*.csv"))
+    }
+    resumed = _ok(_cli(root, *TRAIN, "--timesteps", "48", "--no-progress-bar"))
+    rollouts = {}
+    for command, extra in (
+        ("evaluate", ["--model", "train"]),
+        ("baseline", []),
+        ("open-loop", ["--amplitude", "0.5", "--frequency", "3"]),
+    ):
+        out = _ok(
+            _cli(
+                root,
+                command,
+                "quickstart",
+                "--double",
+                "--episode-time",
+                "0.25",
+                "--out",
+                command,
+                *extra,
+            )
+        )
+        rollouts[command] = out
+    return {
+        "root": root,
+        "train_seconds": seconds,
+        "first": first,
+        "resumed": resumed,
+        "monitors_after_first": monitors_after_first,
+        "rollouts": rollouts,
+    }
+
+
+def _monitor_rows(path: Path) -> list[dict[str, str]]:
+    lines = path.read_text().splitlines()
+    assert lines[0].startswith("#{") and lines[1] == "r,l,t", lines[:2]
+    return list(csv.DictReader(lines[1:]))
+
+
+def _history(path: Path) -> list[dict[str, str]]:
+    with path.open() as handle:
+        return list(csv.DictReader(handle))
+
+
+# -- train -----------------------------------------------------------------------------------
+
+
+def test_train_runs_ppo_updates_end_to_end(recorded):
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    train = root / "train"
+    assert recorded["train_seconds"] < 120, recorded["train_seconds"]
+    assert (train / "model.zip").is_file()
+    assert (train / "checkpoints" / "ppo_32_steps.zip").is_file()
+    # 32 steps over 2 envs of 4-action episodes: 4 whole episodes per env
+    for name, text in recorded["monitors_after_first"].items():  # type: ignore[union-attr]
+        rows = list(csv.DictReader(text.splitlines()[1:]))
+        assert len(rows) == 4, name
+        assert all(int(r["l"]) == 4 and math.isfinite(float(r["r"])) for r in rows)
+    # PPO updated: its losses went to TensorBoard
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = sorted((train / "tb").rglob("events.out.tfevents.*"))
+    assert events
+    tags: set[str] = set()
+    for path in events:
+        acc = EventAccumulator(str(path))
+        acc.Reload()
+        tags |= set(acc.Tags()["scalars"])
+    assert {"train/loss", "train/value_loss", "rollout/ep_rew_mean"} <= tags
+    # the fault-tolerant vector env ran the envs (its per-env worker logs)
+    assert sorted(p.name for p in (train / "workers").glob("env_*.log")) == [
+        "env_0.log",
+        "env_1.log",
+    ]
+
+
+def test_train_resumes_from_the_newest_checkpoint(recorded):
+    train: Path = recorded["root"] / "train"  # type: ignore[operator]
+    assert "resuming from" in recorded["resumed"] and "ppo_32_steps.zip" in recorded["resumed"]
+    assert "48 steps" in recorded["resumed"]
+    assert (train / "checkpoints" / "ppo_48_steps.zip").is_file()
+    for name, before in recorded["monitors_after_first"].items():  # type: ignore[union-attr]
+        after = _monitor_rows(train / "monitor" / name)
+        assert len(after) == 6  # 4 episodes, then 2 more of the 8 resumed steps per env
+        assert (train / "monitor" / name).read_text().startswith(before)
+
+
+def test_manifest_records_what_made_the_run(recorded):
+    train: Path = recorded["root"] / "train"  # type: ignore[operator]
+    manifest = json.loads((train / "manifest.json").read_text())
+    assert manifest["command"] == "train"
+    assert manifest["argv"][1:3] == ["train", "quickstart"] and "--double" in manifest["argv"]
+    assert manifest["seeds"] == {"seed": 7, "env_seeds": [7, 8]}
+    for dist in ("gymprecice-core", "gymprecice-tutorials", "stable-baselines3", "torch"):
+        assert manifest["packages"][dist] == importlib.metadata.version(dist)
+    checks = {c["name"]: c for c in manifest["solvers"]["checks"]}
+    assert "pyprecice" in checks and "python" in checks
+    assert manifest["settings"]["double"] is True
+    assert manifest["settings"]["env_id"] == "gymprecice/Quickstart-v0"
+    assert manifest["result"]["timesteps"] == 48
+    case = Path(manifest["case_dir"])
+    hashes = manifest["config_files"]
+    assert {"gymprecice-config.json", "precice-config.xml", "fluid-fake/fake-flow.json"} <= set(
+        hashes
+    )
+    for rel, digest in hashes.items():
+        assert hashlib.sha256((case / rel).read_bytes()).hexdigest() == digest
+
+
+# -- rollouts --------------------------------------------------------------------------------
+
+
+def test_baseline_is_uncontrolled_and_open_loop_is_a_sine(recorded):
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    baseline = _history(root / "baseline" / "history.csv")
+    assert len(baseline) == 10  # 0.25 s of 0.025 s actions
+    assert all(float(r["action_0"]) == 0.0 for r in baseline)
+    sine = _history(root / "open-loop" / "history.csv")
+    for row in sine:
+        expected = 0.5 * MAX_FLOW_RATE * math.sin(2 * math.pi * 3.0 * float(row["start"]))
+        assert float(row["action_0"]) == pytest.approx(expected, rel=1e-5, abs=1e-12)
+    coefficients = _history(root / "baseline" / "coefficients.csv")
+    assert len(coefficients) == 500  # every solver step: 10 actions x 50 steps
+    summary = json.loads((root / "baseline" / "summary.json").read_text())
+    assert summary["episodes"][0]["steps"] == 10
+    assert summary["episodes"][0]["mean_Cd"] == pytest.approx(
+        np.mean([float(r["Cd"]) for r in baseline])
+    )
+
+
+def test_evaluate_runs_the_trained_policy_deterministically(recorded):
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    manifest = json.loads((root / "evaluate" / "manifest.json").read_text())
+    assert manifest["settings"]["deterministic"] is True
+    assert Path(manifest["settings"]["model"]) == (root / "train" / "model.zip").resolve()
+    rows = _history(root / "evaluate" / "history.csv")
+    actions = np.array([float(r["action_0"]) for r in rows])
+    assert len(rows) == 10 and np.all(np.abs(actions) <= MAX_FLOW_RATE * (1 + 1e-6))
+    # rerunning gives the same actions: the policy's mean, not samples
+    again = _ok(
+        _cli(
+            root,
+            "evaluate",
+            "quickstart",
+            "--double",
+            "--episode-time",
+            "0.1",
+            "--model",
+            "train/model.zip",
+            "--out",
+            "evaluate-again",
+        )
+    )
+    assert "1 episode(s)" in again
+    first4 = actions[:4]
+    again4 = [float(r["action_0"]) for r in _history(root / "evaluate-again" / "history.csv")]
+    assert np.allclose(first4, again4, rtol=1e-6, atol=0)
+
+
+# -- plot ------------------------------------------------------------------------------------
+
+
+def _assert_png(path: Path) -> None:
+    import matplotlib.image
+
+    data = path.read_bytes()
+    assert data[:8] == PNG_SIGNATURE, path
+    assert len(data) > 10_000, (path, len(data))
+    pixels = matplotlib.image.imread(path)
+    assert pixels.shape[0] > 200 and pixels.shape[1] > 400
+    assert float(np.std(pixels[..., :3])) > 0.01  # something is drawn
+
+
+def test_plot_draws_reward_actions_and_coefficients(recorded):
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    out = _ok(
+        _cli(
+            root,
+            "plot",
+            "train",
+            "evaluate",
+            "open-loop",
+            "--baseline",
+            "baseline",
+            "--out",
+            "figs",
+        )
+    )
+    names = {"reward.png", "actions.png", "coefficients.png"}
+    assert {Path(line).name for line in out.split()} >= names
+    for name in names:
+        _assert_png(root / "figs" / name)
+
+
+def test_reward_curve_falls_back_to_tensorboard(recorded, tmp_path):
+    train = tmp_path / "train"
+    shutil.copytree(recorded["root"] / "train" / "tb", train / "tb")  # type: ignore[operator]
+    curve = plots.load_training_curve(train)
+    assert curve is not None and curve["source"] == "tensorboard"
+    steps, values = curve["per_env"][0]
+    assert len(steps) >= 2 and np.all(np.isfinite(values))
+    png = plots.plot_reward([train], tmp_path / "figs")
+    assert png is not None
+    _assert_png(png)
+
+
+def test_plot_with_nothing_to_draw_fails(tmp_path):
+    (tmp_path / "empty").mkdir()
+    proc = _cli(tmp_path, "plot", "empty")
+    assert proc.returncode == 1 and "nothing to draw" in proc.stderr
