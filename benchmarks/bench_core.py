@@ -115,6 +115,8 @@ def bare_run(case: Path, library: str, work: Path) -> tuple[float, list[float]]:
         cwd=work,
         stdout=subprocess.DEVNULL,
     )
+    here = os.getcwd()
+    os.chdir(work)  # preCICE writes its profiling files into the working directory
     participant = precice.Participant("Controller", str(config), 0, 1)
     geometry = fake_cylinder_geometry()
     ids = {}
@@ -135,6 +137,7 @@ def bare_run(case: Path, library: str, work: Path) -> tuple[float, list[float]]:
         participant.read_data("Fluid-Mesh-cylinder", "Pressure", cyl_ids, 0.0)
         steps.append(time.perf_counter() - t0)
     participant.finalize()
+    os.chdir(here)
     partner.wait(timeout=30)
     return reset_s, steps[:-1]
 
