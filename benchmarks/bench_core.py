@@ -108,10 +108,21 @@ def bare_run(case: Path, library: str, work: Path) -> tuple[float, list[float]]:
     config = case_config("fake_cylinder", work, max_time=None, exchange_directory=work / "x")
     xml = (case / "precice-config.xml").read_text()
     max_time = xml.split('<max-time value="')[1].split('"')[0]
-    config.write_text(config.read_text().replace('<max-time value="1.0"', f'<max-time value="{max_time}"'))
+    config.write_text(
+        config.read_text().replace('<max-time value="1.0"', f'<max-time value="{max_time}"')
+    )
     started = time.perf_counter()
     partner = subprocess.Popen(
-        [sys.executable, *PARTNER, "--config", str(config), "--participant", "Fluid", "--library", library],
+        [
+            sys.executable,
+            *PARTNER,
+            "--config",
+            str(config),
+            "--participant",
+            "Fluid",
+            "--library",
+            library,
+        ],
         cwd=work,
         stdout=subprocess.DEVNULL,
     )
@@ -121,7 +132,9 @@ def bare_run(case: Path, library: str, work: Path) -> tuple[float, list[float]]:
     geometry = fake_cylinder_geometry()
     ids = {}
     for name in ("jet1", "jet2"):
-        ids[name] = participant.set_mesh_vertices(f"Controller-Mesh-{name}", geometry[name].coordinates)
+        ids[name] = participant.set_mesh_vertices(
+            f"Controller-Mesh-{name}", geometry[name].coordinates
+        )
     participant.set_mesh_access_region("Fluid-Mesh-cylinder", np.array([-1e300, 1e300] * 2))
     participant.initialize()
     cyl_ids, _ = participant.get_mesh_vertex_ids_and_coordinates("Fluid-Mesh-cylinder")
@@ -194,7 +207,9 @@ def main() -> None:
                 f"         adapter overhead {overhead * 1e6:8.1f} us per step, "
                 f"ratio {statistics.median(a_steps) / statistics.median(b_steps):.2f}x"
             )
-            print(f"  reset  adapter {a_reset * 1e3:8.1f} ms          bare start {b_reset * 1e3:8.1f} ms")
+            print(
+                f"  reset  adapter {a_reset * 1e3:8.1f} ms          bare start {b_reset * 1e3:8.1f} ms"
+            )
             if library == DOUBLE:
                 one, many = concurrent_resets(case, root / "conc", args.concurrent)
                 print(

@@ -5,6 +5,8 @@ Importing the package registers the Gymnasium environment ids of every installed
 without importing the plugin packages by hand.
 """
 
+import os
+
 __version__ = "0.2.0"
 
 
@@ -25,4 +27,12 @@ def _register_plugin_environments() -> None:
         )
 
 
-_register_plugin_environments()
+# With every third-party plugin disabled (coupling workers, partners, hermetic tests) there
+# is nothing to register, and skipping it keeps their start-up free of gymnasium.
+if os.environ.get("GYMPRECICE_DISABLE_PLUGINS", "").strip().lower() not in (
+    "1",
+    "true",
+    "all",
+    "*",
+):
+    _register_plugin_environments()

@@ -40,7 +40,7 @@ from gymprecice.coupling import CouplingSession, CouplingState, WorkerProcess
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.plugins import get_plugin_manager, solver_kinds
 from gymprecice.processes import PidRegistry, SolverProcess
-from gymprecice.rundir import RunDirectory, create_run_directory
+from gymprecice.rundir import RunDirectory, create_run_directory, env_root
 from gymprecice.solver import InterfaceGeometry, OutputReader, SolverContext
 
 __all__ = ["Adapter", "DataDict", "DataRef", "Timing"]
@@ -205,6 +205,19 @@ class Adapter(gym.Env):
         return np.zeros(shape, dtype=float)
 
     # -- geometry and directories ----------------------------------------------------------
+    @property
+    def env_dir(self) -> Path:
+        """Where this env's run directory is (or will be), without preparing anything.
+
+        A supervisor needs it before preparation starts, to find the pid registry of a
+        preparation that hangs.
+        """
+        return (
+            self._run.root
+            if self._run is not None
+            else env_root(self.config, self.env_index, self._run_root)
+        )
+
     @property
     def run_dir(self) -> Path:
         """This env's run directory (made and prepared on first use)."""

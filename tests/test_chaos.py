@@ -1,0 +1,335 @@
+"""Chaos tests: real envs (Adapter, coupling worker, preCICE double, solver) failing on purpose.
+
+Each case runs a :class:`~gymprecice.vector.ResilientVectorEnv` of two
+:class:`gymprecice.testing.chaos.CylinderEnv` envs and makes env 1 fail, at reset or in
+the middle of an episode, the way CFD runs fail: the solver is killed with SIGKILL, stopped
+with SIGSTOP (hung), exits 1 with an error message, leaves a corrupt output file that the
+env reads, has a broken case (a mesh patch missing at reset), or runs out of disk. Two more
+cases hit the env process itself (SIGSTOP: the controller blocked in preCICE; SIGKILL),
+which only the vector env, outside it, can resolve.
+
+Every case checks that:
+
+* the failure reaches the learner within the timeout, as a truncated episode with
+  ``info["failure"]`` naming env 1 and carrying the log tail, and is logged;
+* no process of the failed episode survives (every process seen descending from env 1's
+  worker, or in its recorded process groups, is gone, except the new incarnation's);
+* the pristine case directory is untouched (hashed before and after);
+* env 0 keeps stepping, its episode unaffected;
+* env 1's next episode (the reset done by the vector env) works.
+
+How disk-full is simulated: see :mod:`gymprecice.testing.chaos` (RLIMIT_FSIZE on the
+solver; mounting a tiny tmpfs needs privileges test machines rarely have).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import logging
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gymprecice.testing.chaos import (
+    CylinderEnv,
+    ProcessWatcher,
+    corrupt_output,
+    env_processes,
+    inject,
+    pid_alive,
+    solver_groups,
+    write_case,
+)
+from gymprecice.vector import ResilientVectorEnv
+
+pytestmark = pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="process checks read /proc"
+)
+
+FAILED = 1
+#: Adapter timeouts (the precise reports) and the vector env's outer safety net.
+PROGRESS_S = 4.0
+STEP_TIMEOUT_S = 8.0
+#: generous upper bound on "reported within the timeout" (loaded CI machines)
+REPORT_BOUND_S = PROGRESS_S + STEP_TIMEOUT_S + 10.0
+
+
+# -- helpers ---------------------------------------------------------------------------------
+
+
+def tree_hash(root: Path) -> str:
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*")):
+        digest.update(str(path.relative_to(root)).encode())
+        if path.is_file():
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+class Chaos:
+    def __init__(self, tmp_path: Path):
+        self.tmp = tmp_path
+        self.faults = tmp_path / "faults"
+        self.case = write_case(
+            tmp_path / "case",
+            self.faults,
+            end_time=0.2,
+            window=0.01,
+            windows_per_step=2,
+            timeouts={"progress": PROGRESS_S, "reset": 30, "kill_grace": 0.5},
+        )
+        self.runs = tmp_path / "runs"
+        self.pristine = tree_hash(self.case)
+        self.venv: ResilientVectorEnv | None = None
+
+    def make(self, n: int = 2) -> ResilientVectorEnv:
+        fns = [
+            functools.partial(CylinderEnv, str(self.case), i, run_root=str(self.runs))
+            for i in range(n)
+        ]
+        self.venv = ResilientVectorEnv(
+            fns,
+            step_timeout=STEP_TIMEOUT_S,
+            reset_timeout=60,
+            kill_grace=0.5,
+            close_timeout=10,
+            log_dir=self.tmp / "logs",
+        )
+        return self.venv
+
+    def env_dir(self, index: int) -> Path:
+        assert self.venv is not None
+        run_dir = self.venv.pool.run_dirs[index]
+        assert run_dir is not None
+        return Path(run_dir)
+
+    def act(self) -> np.ndarray:
+        assert self.venv is not None
+        return np.full((self.venv.num_envs, 1), 0.3, dtype=np.float32)
+
+
+@pytest.fixture
+def chaos(tmp_path, monkeypatch):
+    # Coupling workers start faster without third-party plugins (they need none).
+    monkeypatch.setenv("GYMPRECICE_DISABLE_PLUGINS", "1")
+    state = Chaos(tmp_path)
+    yield state
+    if state.venv is not None:
+        state.venv.close()
+
+
+def check_failure(
+    infos: dict, failure_index: int, *, phase: str, kind: str, type_suffix: str, tail: str
+) -> dict:
+    failure = (
+        {k: v[failure_index] for k, v in infos["failure"].items() if not k.startswith("_")}
+        if phase == "step"
+        else infos["reset_failures"][failure_index][0]
+    )
+    assert failure["env_index"] == failure_index
+    assert failure["phase"] == phase and failure["kind"] == kind
+    assert failure["type"].endswith(type_suffix), failure["type"]
+    assert tail in failure["log_tail"], failure["log_tail"]
+    return failure
+
+
+def watch(venv: ResilientVectorEnv, index: int) -> ProcessWatcher:
+    return ProcessWatcher(lambda: env_processes(venv.pool, index))
+
+
+def finish(chaos: Chaos, watcher: ProcessWatcher, caplog, *, steps: int = 2) -> None:
+    """After the failure: env 1 runs its new episode, nothing old survives, case pristine."""
+    venv = chaos.venv
+    assert venv is not None
+    assert any(f"env {FAILED} failed" in r.getMessage() for r in caplog.records)
+    times = []
+    for _ in range(steps):
+        obs, _, _, truncs, infos = venv.step(chaos.act())
+        assert "failure" not in infos and not truncs.any()
+        times.append(obs[:, 4].copy())
+    assert np.all(np.diff(np.array(times), axis=0) > 0)  # both envs advance in time
+    watcher.stop()
+    current = watcher.sample()
+    leaked = watcher.leaked(keep=current)
+    assert not leaked, f"processes of the failed episode survived: {leaked}"
+    assert tree_hash(chaos.case) == chaos.pristine
+    assert len(venv.failures) == 1
+    venv.close()
+    assert not watcher.leaked() and not [p for p in current if pid_alive(p)]
+
+
+# -- faults at reset ---------------------------------------------------------------------------
+
+RESET_FAULTS = [
+    # (id, phase, fault, params, failure kind/type, text in the log tail)
+    ("kill-9", "run", "kill", {}, "SolverCrashedError", "SIGKILL before connecting"),
+    ("sigstop", "run", "stop", {}, "SolverTimeoutError", "SIGSTOP before connecting"),
+    ("exit-1", "run", "exit", {"code": 1}, "SolverCrashedError", "FOAM FATAL ERROR"),
+    ("corrupt-output", "run", "corrupt-output", {}, "ValueError", "corrupt forceCoeffs"),
+    ("missing-patch", "reset", "bad-case", {"patch": "jet1"}, "SolverCrashedError", "'jet1'"),
+    ("disk-full", "run", "disk-full", {"headroom": 0}, "SolverCrashedError", "disk full"),
+]
+
+
+@pytest.mark.parametrize(
+    ("phase", "fault", "params", "type_suffix", "tail"),
+    [case[1:] for case in RESET_FAULTS],
+    ids=[case[0] for case in RESET_FAULTS],
+)
+def test_fault_at_reset(chaos, caplog, phase, fault, params, type_suffix, tail):
+    caplog.set_level(logging.WARNING, logger="gymprecice.vector")
+    venv = chaos.make()
+    watcher = watch(venv, FAILED)
+    inject(chaos.faults, FAILED, phase, fault, **params)
+    started = time.monotonic()
+    obs, infos = venv.reset(seed=0)
+    assert time.monotonic() - started < REPORT_BOUND_S + 10
+    assert infos["_reset_failures"].tolist() == [False, True]
+    check_failure(infos, FAILED, phase="reset", kind="error", type_suffix=type_suffix, tail=tail)
+    assert np.all(obs[:, 4] == 0.0)  # both envs start their episode
+    finish(chaos, watcher, caplog)
+
+
+# -- faults in the middle of an episode -------------------------------------------------------
+
+
+def _signal_solver(chaos: Chaos, sig: signal.Signals) -> None:
+    groups = solver_groups(chaos.env_dir(FAILED))
+    assert len(groups) == 1
+    os.killpg(groups[0], sig)
+
+
+def _signal_worker(chaos: Chaos, sig: signal.Signals) -> None:
+    assert chaos.venv is not None
+    pid = chaos.venv.pool.worker_pids[FAILED]
+    assert pid is not None
+    os.kill(pid, sig)
+
+
+MID_FAULTS = [
+    # (id, armed before reset, action after 2 steps, kind, type, text in the log tail)
+    (
+        "solver-kill-9",
+        None,
+        lambda c: _signal_solver(c, signal.SIGKILL),
+        "error",
+        "SolverCrashedError",
+        "[Fluid] window 4",
+    ),
+    (
+        "solver-sigstop",
+        None,
+        lambda c: _signal_solver(c, signal.SIGSTOP),
+        "error",
+        "SolverTimeoutError",
+        "[Fluid] window 4",
+    ),
+    (
+        "solver-exit-1",
+        ("exit", {"window": 5, "code": 1}),
+        None,
+        "error",
+        "SolverCrashedError",
+        "FOAM FATAL ERROR",
+    ),
+    (
+        "corrupt-output",
+        None,
+        lambda c: corrupt_output(c.env_dir(FAILED) / "fluid"),
+        "error",
+        "ValueError",
+        "corrupt forceCoeffs",
+    ),
+    (
+        "disk-full",
+        ("disk-full", {"headroom": 1500}),
+        None,
+        "error",
+        "SolverCrashedError",
+        "disk full",
+    ),
+    (
+        "env-process-sigstop",
+        None,
+        lambda c: _signal_worker(c, signal.SIGSTOP),
+        "timeout",
+        "Timeout",
+        "worker pid",
+    ),
+    (
+        "env-process-kill-9",
+        None,
+        lambda c: _signal_worker(c, signal.SIGKILL),
+        "crash",
+        "WorkerCrashed",
+        "worker pid",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("armed", "action", "kind", "type_suffix", "tail"),
+    [case[1:] for case in MID_FAULTS],
+    ids=[case[0] for case in MID_FAULTS],
+)
+def test_fault_mid_episode(chaos, caplog, armed, action, kind, type_suffix, tail):
+    caplog.set_level(logging.WARNING, logger="gymprecice.vector")
+    venv = chaos.make()
+    watcher = watch(venv, FAILED)
+    if armed is not None:
+        inject(chaos.faults, FAILED, "run", armed[0], **armed[1])
+    venv.reset(seed=0)
+    for _ in range(2):
+        obs, _, _, truncs, infos = venv.step(chaos.act())
+        assert "failure" not in infos
+    before = obs.copy()
+    solver_groups_before = solver_groups(chaos.env_dir(FAILED))
+    if action is not None:
+        action(chaos)
+    started = time.monotonic()
+    failure = None
+    last = before
+    for _ in range(6):  # an armed fault fires within a few steps
+        obs, rewards, terms, truncs, infos = venv.step(chaos.act())
+        assert not truncs[0]
+        if truncs[FAILED]:
+            failure = check_failure(
+                infos, FAILED, phase="step", kind=kind, type_suffix=type_suffix, tail=tail
+            )
+            break
+        last = obs.copy()
+    assert failure is not None, "the fault never surfaced"
+    assert time.monotonic() - started < REPORT_BOUND_S
+    assert rewards[FAILED] == 0.0 and not terms.any()
+    assert obs[FAILED, 4] == 0.0  # env 1 already runs its next episode
+    assert np.array_equal(infos["final_obs"][FAILED], last[FAILED])  # last obs it saw
+    assert obs[0, 4] > last[0, 4]  # env 0 went on
+    if kind != "error":  # the vector env itself killed the recorded solver groups
+        assert set(failure["killed_groups"]) >= set(solver_groups_before)
+    finish(chaos, watcher, caplog)
+
+
+def test_two_envs_failing_at_once_recover_in_parallel(chaos, caplog):
+    venv = chaos.make(n=3)
+    watchers = [watch(venv, 1), watch(venv, 2)]
+    venv.reset(seed=0)
+    venv.step(chaos.act())
+    os.killpg(solver_groups(chaos.env_dir(1))[0], signal.SIGKILL)
+    os.kill(venv.pool.worker_pids[2], signal.SIGKILL)
+    obs, _, _, truncs, infos = venv.step(chaos.act())
+    assert list(truncs) == [False, True, True]
+    assert [infos["failure"]["env_index"][i] for i in (1, 2)] == [1, 2]
+    assert obs[0, 4] > 0 and np.all(obs[1:, 4] == 0.0)
+    venv.step(chaos.act())
+    current = set()
+    for watcher in watchers:
+        watcher.stop()
+        current |= watcher.sample()
+    assert not [p for w in watchers for p in w.leaked(keep=current)]
+    assert tree_hash(chaos.case) == chaos.pristine
