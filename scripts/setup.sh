@@ -47,5 +47,5 @@ $PIP install -q --disable-pip-version-check \
   -e packages/gymprecice-openfoam \
   -e packages/gymprecice-dealii \
   -e "packages/gymprecice-tutorials[train]" \
-  pytest pytest-timeout ruff build mpi4py
+  pytest pytest-timeout "ruff==0.17.6" build mpi4py
 echo "setup: done (.venv ready)"
