@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import venv
@@ -33,6 +34,14 @@ def wheels(tmp_path_factory) -> dict[str, Path]:
     out = tmp_path_factory.mktemp("wheels")
     built = {}
     for dist in DISTRIBUTIONS:
+        # build from a clean copy: setuptools' build/ directory in the source tree would
+        # otherwise carry files from earlier builds into the wheel
+        source = out / "src" / dist
+        shutil.copytree(
+            ROOT / "packages" / dist,
+            source,
+            ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__", "tests"),
+        )
         subprocess.run(
             [
                 sys.executable,
@@ -44,7 +53,7 @@ def wheels(tmp_path_factory) -> dict[str, Path]:
                 "-q",
                 "-w",
                 str(out),
-                str(ROOT / "packages" / dist),
+                str(source),
             ],
             check=True,
             cwd=out,

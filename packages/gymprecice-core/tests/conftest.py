@@ -7,50 +7,10 @@ from pathlib import Path
 
 import pytest
 
-PRECICE_XML = """<?xml version="1.0" encoding="UTF-8" ?>
-<precice-configuration>
-  <!-- a controller driving two jets of a 2-D fluid solver -->
-  <data:vector name="Velocity" />
-  <data:scalar name="Pressure" />
-  <mesh name="Controller-Mesh-jet1" dimensions="2"><use-data name="Velocity" /></mesh>
-  <mesh name="Controller-Mesh-jet2" dimensions="2"><use-data name="Velocity" /></mesh>
-  <mesh name="Controller-Mesh-probe" dimensions="2"><use-data name="Pressure" /></mesh>
-  <mesh name="Fluid-Mesh-jet1" dimensions="2"><use-data name="Velocity" /></mesh>
-  <mesh name="Fluid-Mesh-jet2" dimensions="2"><use-data name="Velocity" /></mesh>
-  <mesh name="Fluid-Mesh-probe" dimensions="2"><use-data name="Pressure" /></mesh>
-  <participant name="Controller">
-    <provide-mesh name="Controller-Mesh-jet1" />
-    <provide-mesh name="Controller-Mesh-jet2" />
-    <provide-mesh name="Controller-Mesh-probe" />
-    <receive-mesh name="Fluid-Mesh-probe" from="Fluid" />
-    <write-data name="Velocity" mesh="Controller-Mesh-jet1" />
-    <write-data name="Velocity" mesh="Controller-Mesh-jet2" />
-    <read-data name="Pressure" mesh="Controller-Mesh-probe" />
-    <mapping:nearest-neighbor direction="read" from="Fluid-Mesh-probe" to="Controller-Mesh-probe" constraint="consistent" />
-  </participant>
-  <participant name="Fluid">
-    <provide-mesh name="Fluid-Mesh-jet1" />
-    <provide-mesh name="Fluid-Mesh-jet2" />
-    <provide-mesh name="Fluid-Mesh-probe" />
-    <receive-mesh name="Controller-Mesh-jet1" from="Controller" />
-    <receive-mesh name="Controller-Mesh-jet2" from="Controller" />
-    <read-data name="Velocity" mesh="Fluid-Mesh-jet1" />
-    <read-data name="Velocity" mesh="Fluid-Mesh-jet2" />
-    <write-data name="Pressure" mesh="Fluid-Mesh-probe" />
-    <mapping:nearest-neighbor direction="read" from="Controller-Mesh-jet1" to="Fluid-Mesh-jet1" constraint="consistent" />
-    <mapping:nearest-neighbor direction="read" from="Controller-Mesh-jet2" to="Fluid-Mesh-jet2" constraint="consistent" />
-  </participant>
-  <m2n:sockets acceptor="Controller" connector="Fluid" exchange-directory=".." />
-  <coupling-scheme:parallel-explicit>
-    <participants first="Controller" second="Fluid" />
-    <max-time value="0.01" />
-    <time-window-size value="0.001" />
-    <exchange data="Velocity" mesh="Controller-Mesh-jet1" from="Controller" to="Fluid" />
-    <exchange data="Velocity" mesh="Controller-Mesh-jet2" from="Controller" to="Fluid" />
-    <exchange data="Pressure" mesh="Fluid-Mesh-probe" from="Fluid" to="Controller" />
-  </coupling-scheme:parallel-explicit>
-</precice-configuration>
-"""
+from gymprecice.testing.chaos import PRECICE_XML as CHAOS_XML
+
+#: Controller + Fluid, two jets and a probe mesh, parallel-explicit, ten 1 ms windows.
+PRECICE_XML = CHAOS_XML.format(end_time=0.01, window=0.001)
 
 
 def explicit_config(**overrides) -> dict:

@@ -99,8 +99,15 @@ def test_v2_solver_interface_is_refused_with_advice(tmp_path: Path) -> None:
 
 
 def test_exchange_directory_rewrite_keeps_everything_else(case_dir: Path, tmp_path: Path) -> None:
+    source = case_dir / "precice-config.xml"
+    source.write_text(
+        source.read_text().replace(
+            "<precice-configuration>",
+            "<precice-configuration>\n  <!-- a controller driving two jets -->",
+        )
+    )
     target = tmp_path / "copy.xml"
-    write_with_exchange_directory(case_dir / "precice-config.xml", target, tmp_path / "xchg")
+    write_with_exchange_directory(source, target, tmp_path / "xchg")
     text = target.read_text()
     assert f'exchange-directory="{tmp_path / "xchg"}"' in text
     assert "<!-- a controller driving two jets" in text

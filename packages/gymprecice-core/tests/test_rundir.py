@@ -22,7 +22,7 @@ def test_each_env_gets_real_copies_and_its_own_exchange_dir(case_dir: Path, tmp_
         assert run.exchange_dir.is_dir()
     (runs[0].root / "fluid" / "input.txt").write_text("changed\n")
     assert (case_dir / "fluid" / "input.txt").read_text() == "pristine\n"
-    assert 'exchange-directory=".."' in (case_dir / "precice-config.xml").read_text()
+    assert 'exchange-directory=""' in (case_dir / "precice-config.xml").read_text()
 
 
 def test_recreating_replaces_only_gymprecice_dirs(case_dir: Path, tmp_path: Path) -> None:
