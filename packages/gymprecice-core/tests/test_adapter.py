@@ -229,3 +229,36 @@ def test_seeding_is_reproducible(make_case, base_config, tmp_path):
     assert env.np_random.random() == a
     env.close()
     assert sys.executable
+
+
+def test_open_output_gives_one_reader_per_episode_and_closes_it(make_case, base_config, tmp_path):
+    from gymprecice.hookspecs import hookimpl
+    from gymprecice.plugins import temporary_plugin
+
+    class Reader:
+        closed = False
+
+        def read_new(self):
+            return []
+
+        def close(self):
+            self.closed = True
+
+    class Outputs:
+        @hookimpl
+        def gymprecice_open_output(self, solver, name, options):
+            return Reader() if name == "probes" else None
+
+    case = _case(make_case, base_config, tmp_path)
+    with temporary_plugin(Outputs(), "outputs"):
+        env = JetEnv(case, 0, run_root=tmp_path / "runs")
+        env.reset()
+        first = env.open_output("fluid", "probes", field="p")
+        assert env.open_output("fluid", "probes", field="p") is first
+        assert env.open_output("fluid", "probes", field="U") is not first
+        with pytest.raises(ConfigError, match="no installed plugin opens output 'forces'"):
+            env.open_output("fluid", "forces")
+        env.reset()
+        assert first.closed
+        assert env.open_output("fluid", "probes", field="p") is not first
+        env.close()

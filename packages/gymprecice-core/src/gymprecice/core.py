@@ -169,7 +169,7 @@ class Adapter(gym.Env):
         self._run: RunDirectory | None = None
         self._solvers: dict[str, SolverContext] = {}
         self._session: CouplingSession | None = None
-        self._readers: list[OutputReader] = []
+        self._readers: dict[tuple[str, str, str], OutputReader] = {}
         self._episode_active = False
         self._episode_over = False
         self._closed = False
@@ -307,7 +307,15 @@ class Adapter(gym.Env):
         )
 
     def open_output(self, solver: str, name: str, /, **options: Any) -> OutputReader:
-        """An incremental reader of a solver output (closed by core at reset and close)."""
+        """An incremental reader of a solver output, e.g. ``open_output("fluid", "probes")``.
+
+        The same arguments give the same reader until the episode ends, so an env can ask
+        for it in every ``_get_observation`` and read only what is new; core closes every
+        reader at reset and close.
+        """
+        key = (solver, name, repr(sorted(options.items())))
+        if key in self._readers:
+            return self._readers[key]
         self._ensure_prepared()
         if solver not in self._solvers:
             raise ConfigError(f"no solver {solver!r}; the solvers are {sorted(self._solvers)}")
@@ -319,7 +327,7 @@ class Adapter(gym.Env):
                 f"no installed plugin opens output {name!r} of solver {solver!r} "
                 f"(kind {self._solvers[solver].kind!r})"
             )
-        self._readers.append(reader)
+        self._readers[key] = reader
         return reader
 
     def _ensure_prepared(self) -> None:
@@ -558,7 +566,7 @@ class Adapter(gym.Env):
             session.finish(self._timeouts.finalize)
 
     def _close_readers(self) -> None:
-        readers, self._readers = self._readers, []
+        readers, self._readers = list(self._readers.values()), {}
         for reader in readers:
             try:
                 reader.close()
