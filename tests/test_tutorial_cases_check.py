@@ -1,0 +1,25 @@
+"""Every packaged tutorial case passes `gymprecice check` (configs + cross-check + plugins)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import gymprecice_tutorials
+from gymprecice.cli import main
+
+PACKAGE = Path(gymprecice_tutorials.__file__).resolve().parent
+CASES = sorted(p.parent for p in PACKAGE.rglob("gymprecice-config.json"))
+
+
+def test_every_tutorial_case_is_found() -> None:
+    names = {case.name for case in CASES}
+    assert {"jet_cylinder", "rotating_cylinder", "quickstart", "perpendicular_flap"} <= names
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+def test_case_passes_gymprecice_check(case: Path, capsys) -> None:
+    assert main(["check", str(case)]) == 0, capsys.readouterr()
+    out = capsys.readouterr().out
+    assert "Controller" in out
