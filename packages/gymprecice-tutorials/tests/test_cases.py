@@ -22,6 +22,7 @@ from gymprecice_tutorials.validate import (
     openfoam_environment,
     read_force_coeffs,
     shedding_stats,
+    validation_spec,
 )
 
 CASE_NAMES = sorted(recipes.CASES)
@@ -215,6 +216,28 @@ def test_shedding_stats_on_a_synthetic_signal() -> None:
     assert s.cycles == 10
     with pytest.raises(ValueError, match="periodic"):
         shedding_stats(t, cd, np.zeros_like(t))
+
+
+def test_validation_plans_match_the_docs() -> None:
+    full = validation_spec(smoke=False, n_procs=2)
+    smoke = validation_spec(smoke=True, n_procs=1, end_time=1.0)
+    assert full.resolution == recipes.Resolution.fine()
+    assert full.flow == recipes.CASES["jet_cylinder"].flow  # the case's own numerics
+    assert (smoke.end_time, smoke.resolution) == (1.0, recipes.Resolution.coarse())
+    cells = {
+        name: recipes.block_counts(recipes.Geometry(), res).cells
+        for name, res in (
+            ("coarse", recipes.Resolution.coarse()),
+            ("default", recipes.Resolution.default()),
+            ("fine", recipes.Resolution.fine()),
+        )
+    }
+    doc = Path(__file__).resolve().parents[3] / "docs" / "validation.md"
+    if not doc.is_file():
+        pytest.skip("docs/validation.md is not in this checkout")
+    text = doc.read_text()
+    for name, n in cells.items():
+        assert f"{n:,}".replace(",", " ") in text, f"{name} mesh: {n} cells not in {doc.name}"
 
 
 def test_deviation_from_reference_interval() -> None:
