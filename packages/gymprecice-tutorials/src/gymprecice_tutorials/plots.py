@@ -96,26 +96,24 @@ def _tensorboard_scalars(directory: Path, tag: str) -> tuple[np.ndarray, np.ndar
     return np.asarray(steps)[order], np.asarray(values)[order]
 
 
-def load_history(run: Path) -> dict[str, np.ndarray] | None:
-    """``history.csv`` of a rollout run as columns (``None`` when the run has none)."""
-    path = run / "history.csv"
+def _load_columns(path: Path) -> dict[str, np.ndarray] | None:
+    """A rollout CSV as columns (``None`` when the file is missing or empty)."""
     if not path.is_file():
         return None
     rows = _read_csv(path)
     if not rows:
         return None
     return {key: np.array([_float(r[key]) for r in rows]) for key in rows[0]}
+
+
+def load_history(run: Path) -> dict[str, np.ndarray] | None:
+    """``history.csv`` of a rollout run as columns (``None`` when the run has none)."""
+    return _load_columns(run / "history.csv")
 
 
 def load_coefficients(run: Path) -> dict[str, np.ndarray] | None:
     """``coefficients.csv`` of a rollout run as columns (``None`` when empty or missing)."""
-    path = run / "coefficients.csv"
-    if not path.is_file():
-        return None
-    rows = _read_csv(path)
-    if not rows:
-        return None
-    return {key: np.array([_float(r[key]) for r in rows]) for key in rows[0]}
+    return _load_columns(run / "coefficients.csv")
 
 
 def _float(text: str) -> float:
