@@ -79,6 +79,9 @@ def test_wheels_carry_their_code_data_and_entry_points(wheels: dict[str, Path]) 
             assert any(n.endswith("precice-config.xml") for n in cases)
             assert any(n.endswith("gymprecice-config.json") for n in cases)
             assert any(n.endswith("blockMeshDict") or n.endswith("recipes.py") for n in names)
+            flap = "gymprecice_tutorials/perpendicular_flap/case/"
+            assert flap + "solid-dealii/parameters.prm" in names
+            assert flap + "fluid-openfoam/system/preciceDict" in names
 
 
 def test_wheels_install_into_a_fresh_venv_and_work_outside_the_repo(wheels, tmp_path: Path) -> None:

@@ -11,7 +11,7 @@ from gymprecice.testing.conformance import SolverPluginConformance, make_solver_
 
 FLAP_SOLID = (
     Path(__file__).resolve().parents[2]
-    / "gymprecice-tutorials/src/gymprecice_tutorials/perpendicular_flap/solid-dealii"
+    / "gymprecice-tutorials/src/gymprecice_tutorials/perpendicular_flap/case/solid-dealii"
 )
 
 

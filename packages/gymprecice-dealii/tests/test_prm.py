@@ -17,7 +17,7 @@ from gymprecice_dealii.prm import ElasticityParameters, PrmError, PrmFile
 
 FLAP_PRM = (
     Path(__file__).resolve().parents[2]
-    / "gymprecice-tutorials/src/gymprecice_tutorials/perpendicular_flap/solid-dealii/parameters.prm"
+    / "gymprecice-tutorials/src/gymprecice_tutorials/perpendicular_flap/case/solid-dealii/parameters.prm"
 )
 
 EDGE_CASES = """\

@@ -18,24 +18,46 @@ from gymprecice.solver import SolverContext
 from gymprecice_openfoam import case, checks, control, installation, testing
 
 
-def _episode(foam, solver: SolverContext, extra: list[str] | None = None) -> Path:
-    """Run the launch spec as core would (uncoupled here: no adapter on this machine)."""
+def _episode(
+    foam, solver: SolverContext, extra: list[str] | None = None, *, adapter: str = "drop"
+) -> Path:
+    """Run the launch spec as core would, uncoupled: without a preCICE partner.
+
+    The adapter's function object is taken out of controlDict for the run (where the
+    adapter is installed it would wait for the controller) and the file's bytes put back;
+    ``adapter="unloadable"`` keeps it but names a library that does not exist, which is
+    what a machine without the adapter sees.
+    """
     spec = case.launch_spec(solver)
     env = foam.environ()
     env.update(spec.env)
     log = Path(spec.cwd) / spec.log_name
-    with log.open("wb") as handle:
-        proc = subprocess.run(
-            [*spec.argv, *(extra or [])],
-            cwd=spec.cwd,
-            env=env,
-            stdout=handle,
-            stderr=subprocess.STDOUT,
-            timeout=120,
-            check=False,
-        )
+    control_dict = control.control_dict_path(solver.run_dir)
+    original = control_dict.read_bytes()
+    try:
+        with FoamFile(control_dict) as ctl:
+            for name in control.adapter_entries(solver.run_dir):
+                if adapter == "drop":
+                    del ctl["functions", name]
+                else:
+                    ctl["functions", name, "libs"] = [MISSING_LIBRARY]
+        with log.open("wb") as handle:
+            proc = subprocess.run(
+                [*spec.argv, *(extra or [])],
+                cwd=spec.cwd,
+                env=env,
+                stdout=handle,
+                stderr=subprocess.STDOUT,
+                timeout=120,
+                check=False,
+            )
+    finally:
+        control_dict.write_bytes(original)
     assert proc.returncode == 0, log.read_text()[-3000:]
     return log
+
+
+MISSING_LIBRARY = "libpreciceAdapterFunctionObjectNowhere.so"
 
 
 def _litter(run_dir: Path, initial: str) -> None:
@@ -85,12 +107,12 @@ def test_prepare_then_reset_restores_the_prepared_tree(foam, cylinder_case, solv
 
 @pytest.mark.openfoam
 def test_check_solver_reports_the_uncoupled_run(foam, cylinder_case, solver_for):
-    """On this machine the adapter is missing, so the solver only warns: we must not."""
+    """Without a loadable adapter OpenFOAM only warns and runs uncoupled: we must not."""
     solver = solver_for(cylinder_case("fluid", end_time=0.004))
     case.prepare_case(solver)
-    log = _episode(foam, solver)
+    log = _episode(foam, solver, adapter="unloadable")
     text = log.read_text()
-    assert 'Could not load "libpreciceAdapterFunctionObject.so"' in text
+    assert f'Could not load "{MISSING_LIBRARY}"' in text
     message = checks.check_solver(solver, text[-2000:], log.name)
     assert message is not None
     assert str(log) in message and "UNCOUPLED" in message and "FOAM_USER_LIBBIN" in message
@@ -289,3 +311,52 @@ def test_case_without_mesh_or_recipe(tmp_path):
     inst = installation.OpenFOAMInstallation(project_dir=tmp_path, layout="sourced")
     with pytest.raises(CaseError, match=r"no mesh and no recipe \(system/blockMeshDict"):
         case.ensure_mesh(tmp_path, inst, {})
+
+
+@pytest.mark.openfoam
+def test_envs_share_one_prerun_through_the_cache(cylinder_case, solver_for, tmp_path):
+    """Identical cases pre-run once: the others copy the result, even when concurrent."""
+    import threading
+
+    sources = [cylinder_case(f"fluid{i}", end_time=0.03, delta_t=0.002) for i in range(3)]
+    solvers = [solver_for(s, prerun_end_time=0.01) for s in sources]
+    threads = [threading.Thread(target=case.prepare_case, args=(s,)) for s in solvers]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+
+    logs = [(s.run_dir / "log.prerun.pimpleFoam").read_text() for s in solvers]
+    restored = [log.startswith("// gymprecice: pre-run restored") for log in logs]
+    assert sorted(restored) == [False, True, True], "exactly one env ran the pre-run"
+    fields = [(s.run_dir / "0.01" / "U").read_bytes() for s in solvers]
+    assert fields[0] == fields[1] == fields[2]
+    assert all(s.state["openfoam"].initial_time == "0.01" for s in solvers)
+
+    # Another input (here the pre-run's end) is another entry; false turns sharing off.
+    longer = solver_for(cylinder_case("longer", end_time=0.03, delta_t=0.002), prerun_end_time=0.02)
+    case.prepare_case(longer)
+    assert not (longer.run_dir / "log.prerun.pimpleFoam").read_text().startswith("//")
+    private = solver_for(
+        cylinder_case("private", end_time=0.03, delta_t=0.002),
+        prerun_end_time=0.01,
+        prerun_cache=False,
+    )
+    case.prepare_case(private)
+    assert not (private.run_dir / "log.prerun.pimpleFoam").read_text().startswith("//")
+    own = tmp_path / "own-cache"
+    elsewhere = solver_for(
+        cylinder_case("elsewhere", end_time=0.03, delta_t=0.002),
+        prerun_end_time=0.01,
+        prerun_cache=str(own),
+    )
+    case.prepare_case(elsewhere)
+    assert len([p for p in own.iterdir() if p.is_dir()]) == 1
+
+
+def test_prerun_cache_option_is_checked() -> None:
+    from gymprecice_openfoam import prerun_cache
+
+    with pytest.raises(ConfigError, match="prerun_cache=3"):
+        prerun_cache.cache_dir({"prerun_cache": 3})
+    assert prerun_cache.cache_dir({"prerun_cache": False}) is None

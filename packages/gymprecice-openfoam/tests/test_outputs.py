@@ -187,7 +187,7 @@ def test_wait_until_polls_without_busy_waiting_and_times_out(tmp_path):
 
 @pytest.mark.openfoam
 def test_readers_match_a_real_run_read_while_it_writes(foam, run, cylinder_case):
-    case = cylinder_case("live", end_time=0.3, delta_t=0.0005, write_interval=10)
+    case = cylinder_case("live", end_time=0.3, delta_t=0.0005, write_interval=10, adapter=False)
     run(case, "blockMesh")
     program = foam.which("pimpleFoam")
     probes = outputs.ProbesReader(case / "postProcessing" / "probes", "p")

@@ -36,7 +36,7 @@ import numpy as np
 
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.solver import LaunchSpec, SolverContext
-from gymprecice_openfoam import control, foamio
+from gymprecice_openfoam import control, foamio, prerun_cache
 from gymprecice_openfoam.installation import (
     OpenFOAMInstallation,
     find_openfoam,
@@ -472,17 +472,7 @@ def _initial_time(
     if prerun_end is not None:
         prerun_end = float(prerun_end)
         missing = [v for v in snap_values if find_time(root, v, tol) is None and v <= prerun_end]
-        post_before = _post_entries(run_dir)
-        prerun(
-            run_dir,
-            inst,
-            app,
-            np_,
-            sorted({*missing, prerun_end}),
-            timeout=options.get("prerun_timeout"),
-            extra_args=list(options.get("prerun_args", [])),
-        )
-        _move_prerun_output(run_dir, post_before)
+        _shared_prerun(run_dir, inst, app, np_, sorted({*missing, prerun_end}), options)
         initial = find_time(root, prerun_end, tol)
         if initial is None:
             raise CaseError(
@@ -500,6 +490,65 @@ def _initial_time(
             )
         return initial
     return _start_of(run_dir, root, tol)
+
+
+def _shared_prerun(
+    run_dir: Path,
+    inst: OpenFOAMInstallation,
+    app: str,
+    np_: int,
+    targets: list[float],
+    options: dict[str, Any],
+) -> None:
+    """The pre-run, through :mod:`.prerun_cache` unless option ``prerun_cache`` is false."""
+    extra_args = list(options.get("prerun_args", []))
+
+    def run() -> None:
+        post_before = _post_entries(run_dir)
+        prerun(
+            run_dir,
+            inst,
+            app,
+            np_,
+            targets,
+            timeout=options.get("prerun_timeout"),
+            extra_args=extra_args,
+        )
+        _move_prerun_output(run_dir, post_before)
+
+    directory = prerun_cache.cache_dir(options)
+    if directory is None:
+        run()
+        return
+    skip = [
+        name
+        for name in os.listdir(run_dir)
+        if _is_episode_output(name) or name in (STORE, "postProcessing", PRERUN_OUTPUT)
+    ]
+    parameters = {
+        "application": app,
+        "np": np_,
+        "targets": targets,
+        "prerun_args": extra_args,
+        "openfoam": [str(inst.project_dir), inst.version],
+    }
+    key = prerun_cache.entry_key(run_dir, skip=skip, parameters=parameters)
+    roots = {_rel_root(run_dir, r): r for r in _roots(run_dir)}
+    with prerun_cache.locked_entry(directory, key) as entry:
+        if prerun_cache.restore(entry, run_dir) is not None:
+            return
+        before = {rel: set(time_names(r)) for rel, r in roots.items()}
+        run()
+        written = {
+            rel: sorted(set(time_names(r)) - before[rel])
+            for rel, r in roots.items()
+            if set(time_names(r)) - before[rel]
+        }
+        prerun_cache.store(entry, run_dir, written, f"log.prerun.{app}")
+
+
+def _rel_root(run_dir: Path, root: Path) -> str:
+    return "." if root == run_dir else root.name
 
 
 def _snapshot_names(root: Path, values: list[float], tol: float) -> list[str]:

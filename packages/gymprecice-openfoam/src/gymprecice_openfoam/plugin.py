@@ -6,6 +6,8 @@ Solver options (``physics_simulation_engine.solvers.<name>.options``):
 ``np``               processes; 1 = serial, >1 must match ``system/decomposeParDict``
                      (default: the dictionary's ``numberOfSubdomains``, 1 without it)
 ``prerun_end_time``  pre-run uncoupled to this time once; episodes start there
+``prerun_cache``     share pre-runs between envs and runs (default true: the user cache,
+                     see :mod:`.prerun_cache`; false: never; or a directory)
 ``initial_time``     start episodes from this existing time directory instead
 ``snapshots``        times (or ``{"train": [...], "eval": [...]}``) to draw episode starts
                      from; ``eval_fraction`` (default 0.25) sets the fixed split

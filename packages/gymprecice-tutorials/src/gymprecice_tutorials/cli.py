@@ -171,7 +171,10 @@ def add_commands(sub: Any) -> None:
         help="amplitude as a fraction of the action bound (default 0.5)",
     )
     p.add_argument(
-        "--frequency", type=_positive_float, default=3.0, help="frequency in Hz (default 3)"
+        "--frequency",
+        type=_positive_float,
+        default=None,
+        help="frequency in Hz (default: 3 for the cylinders, 0.5 for the flap)",
     )
     p.add_argument("--phase", type=float, default=0.0, help="phase in radians")
     p.add_argument("--episodes", type=_positive_int, default=1)

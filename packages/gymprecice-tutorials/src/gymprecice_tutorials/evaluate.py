@@ -3,11 +3,14 @@
 All three run whole episodes of one environment with a fixed controller and write the
 same files, so ``gymprecice plot`` can put any of them side by side:
 
-* ``history.csv``: one row per action: ``episode, step, start, time, reward, Cd, Cl,
-  action_0..`` (``start``/``time``: coupling time at the action's start and end; Cd/Cl
-  are the averages the reward used; actions in the env's own units);
-* ``coefficients.csv``: every solver step's ``episode, time, Cd, Cl`` (the time series);
-* ``summary.json``: per-episode return and mean coefficients;
+* ``history.csv``: one row per action: ``episode, step, start, time, reward``, the
+  step's metrics, ``action_0..`` (``start``/``time``: coupling time at the action's start
+  and end; metrics: the named scalars an env reports in ``info["metrics"]``, e.g. the
+  cylinders' ``Cd``/``Cl`` averages the reward used, or the flap's tip displacement;
+  actions in the env's own units);
+* ``coefficients.csv``: every solver step's ``episode, time, Cd, Cl`` (the time series of
+  the cylinder envs; header only for envs without force coefficients);
+* ``summary.json``: per-episode return and the mean of each metric (``mean_Cd``, ...);
 * ``manifest.json``.
 
 The controllers: ``evaluate`` is a trained PPO policy, deterministic by default (the mean
@@ -101,9 +104,8 @@ def rollout(
                 "start": start,
                 "time": t,
                 "reward": float(reward),
-                "Cd": info.get("Cd", float("nan")),
-                "Cl": info.get("Cl", float("nan")),
             }
+            row.update({name: float(v) for name, v in info.get("metrics", {}).items()})
             row.update({f"action_{i}": float(a) for i, a in enumerate(physical)})
             history_rows.append(row)
             for time_, cd, cl in np.asarray(info.get("coefficients", np.zeros((0, 3)))):
@@ -111,16 +113,17 @@ def rollout(
             if terminated or truncated:
                 break
         rows = [r for r in history_rows if r["episode"] == episode]
-        summaries.append(
-            {
-                "episode": episode,
-                "steps": step,
-                "return": total,
-                "end_time": t,
-                "mean_Cd": _nanmean([r["Cd"] for r in rows]),
-                "mean_Cl": _nanmean([r["Cl"] for r in rows]),
-            }
+        metrics = dict.fromkeys(
+            name
+            for r in rows
+            for name in r
+            if name not in _NOT_METRICS and not name.startswith("action_")
         )
+        summary_row = {"episode": episode, "steps": step, "return": total, "end_time": t}
+        summary_row.update(
+            {f"mean_{name}": _nanmean([r.get(name, math.nan) for r in rows]) for name in metrics}
+        )
+        summaries.append(summary_row)
     _write_csv(out / "history.csv", history_rows)
     with (out / "coefficients.csv").open("w", newline="") as handle:
         writer = csv.writer(handle)
@@ -132,6 +135,9 @@ def rollout(
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+_NOT_METRICS = {"episode", "step", "start", "time", "reward"}
 
 
 def _nanmean(values: list[Any]) -> float | None:
@@ -202,11 +208,10 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
         elif command == "baseline":
             controller = zero_controller(env.action_space)
         else:
-            controller = sine_controller(
-                env.action_space, args.amplitude, args.frequency, args.phase
-            )
+            frequency = args.frequency or env_info.open_loop_frequency
+            controller = sine_controller(env.action_space, args.amplitude, frequency, args.phase)
             settings.update(
-                {"amplitude": args.amplitude, "frequency": args.frequency, "phase": args.phase}
+                {"amplitude": args.amplitude, "frequency": frequency, "phase": args.phase}
             )
         case_dir = getattr(getattr(env.unwrapped, "config", None), "case_dir", None)
         seeds = {"seed": args.seed, "episode_seeds": [args.seed + i for i in range(args.episodes)]}
@@ -224,7 +229,7 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
         extra={"result": summary},
     )
     last = summary["episodes"][-1]
-    cd = f", mean Cd {last['mean_Cd']:.4f}" if last["mean_Cd"] is not None else ""
+    cd = f", mean Cd {last['mean_Cd']:.4f}" if last.get("mean_Cd") is not None else ""
     print(
         f"gymprecice {command}: {len(summary['episodes'])} episode(s), return "
         f"{summary['mean_return']:.4f}{cd}; results in {out}"

@@ -29,6 +29,9 @@ class TutorialEnv:
     double: bool = True
     #: whether it is built from a case recipe (accepts ``episode_time``, ``double``, ...)
     recipe: bool = True
+    #: ``gymprecice open-loop``'s default forcing frequency (Hz): near the cylinders'
+    #: shedding frequency; well below the flap's 10 actions per second
+    open_loop_frequency: float = 3.0
 
 
 ENVIRONMENTS: dict[str, TutorialEnv] = {
@@ -59,6 +62,7 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "an elastic flap in a channel (OpenFOAM + deal.II FSI), the action steers the inflow",
             double=False,
             recipe=False,
+            open_loop_frequency=0.5,
         ),
     )
 }

@@ -310,12 +310,14 @@ class CylinderFlowEnv(Adapter):
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Core's step, plus the step's mean Cd/Cl and its new coefficient rows in ``info``.
 
-        ``info["Cd"]`` / ``info["Cl"]`` are the averages the reward used;
+        ``info["Cd"]`` / ``info["Cl"]`` are the averages the reward used (also in
+        ``info["metrics"]``, the named scalars that evaluation records);
         ``info["coefficients"]`` holds the rows ``(time, Cd, Cl)`` the solver wrote during
         this step (what evaluation and plots draw as time series).
         """
         obs, reward, terminated, truncated, info = super().step(action)
         info.update(self._metrics)
+        info["metrics"] = dict(self._metrics)
         info["action"] = self._clip(action).tolist()
         info["coefficients"] = self._new_coeffs.copy()
         return obs, reward, terminated, truncated, info

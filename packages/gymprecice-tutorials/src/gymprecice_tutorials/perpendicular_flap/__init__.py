@@ -6,7 +6,8 @@ whose centre the controller moves along the inlet. Three preCICE participants: t
 (OpenFOAM pimpleFoam on a moving mesh, ``fluid-openfoam/``), the solid (the deal.II-preCICE
 adapter's ``elasticity``, ``solid-dealii/``) and the environment itself.
 
-Files of the case, next to this module: ``gymprecice-config.json``, ``precice-config.xml``,
+Files of the case, in ``case/`` next to this module (so that a run directory, a copy of
+the case, holds no Python modules): ``gymprecice-config.json``, ``precice-config.xml``,
 ``solid-dealii/parameters.prm`` and ``fluid-openfoam/`` (no mesh: ``system/blockMeshDict``
 generates it). The environment is :class:`~.environment.PerpendicularFlapEnv`.
 """
@@ -14,4 +15,4 @@ generates it). The environment is :class:`~.environment.PerpendicularFlapEnv`.
 from pathlib import Path
 
 #: directory holding the case (``gymprecice-config.json`` and the solver directories)
-CASE_DIR = Path(__file__).resolve().parent
+CASE_DIR = Path(__file__).resolve().parent / "case"

@@ -152,6 +152,22 @@ class PerpendicularFlapEnv(Adapter):
         self._tip = None
         self._step_rows = np.zeros((0, 0))
 
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Core's step, plus the applied jet centre and the tip's metrics in ``info``.
+
+        ``info["metrics"]`` holds the tip displacement at the step's end (``tip_dx``,
+        ``tip_dy``) and its mean magnitude over the step (``mean_tip_displacement``, the
+        negated reward): what ``gymprecice open-loop`` and ``evaluate`` record.
+        """
+        obs, reward, terminated, truncated, info = super().step(action)
+        info["action"] = [self.jet_centre(action)]
+        info["metrics"] = {
+            "tip_dx": float(obs[0]),
+            "tip_dy": float(obs[1]),
+            "mean_tip_displacement": -float(reward),
+        }
+        return obs, reward, terminated, truncated, info
+
     # -- helpers ---------------------------------------------------------------------------
     def _initial_action(self) -> np.ndarray:
         """Start each episode with the jet in the middle of the inlet."""
