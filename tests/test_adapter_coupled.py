@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import signal
 import subprocess
 import sys
 import time
@@ -211,6 +212,37 @@ raise SystemExit(3)  # exits without env.close()
     )
     assert done.returncode == 3, done.stderr
     pids = [int(p) for p in done.stdout.split()]
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(pid) for pid in pids):
+        time.sleep(0.1)
+    assert not any(_alive(pid) for pid in pids)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_termination_signal_leaves_no_process_behind(tmp_path, signum):
+    """A scheduler's SIGTERM (or a closed terminal's SIGHUP) skips atexit; core cleans up."""
+    case = _case(tmp_path, DOUBLE, max_time=10.0)
+    script = f"""
+import sys, time
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+from test_adapter_coupled import FakeCylinderEnv
+env = FakeCylinderEnv({str(case)!r}, 0, run_root={str(tmp_path / "runs")!r})
+env.reset()
+print(" ".join(str(p.pid) for p in env._session.solvers), env._session.worker.pid, flush=True)
+time.sleep(120)
+"""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        line = proc.stdout.readline()
+        pids = [int(p) for p in line.split()]
+        assert pids, proc.stderr.read()
+        proc.send_signal(signum)
+        assert proc.wait(timeout=60) == -signum  # it still dies of the signal
+    finally:
+        proc.kill()
+        proc.wait()
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline and any(_alive(pid) for pid in pids):
         time.sleep(0.1)

@@ -55,8 +55,10 @@ pytestmark = [
 ]
 
 
-def _episode(env: Any, action: float, seed: int) -> tuple[list[float], dict[str, Any]]:
-    """Cd after each step of one episode at a constant action; the last step's info."""
+def _episode(
+    env: Any, action: float, seed: int
+) -> tuple[list[tuple[float, float]], dict[str, Any]]:
+    """(Cd, Cl) after each step of one episode at a constant action; the last step's info."""
     obs, _ = env.reset(seed=seed)
     assert obs.shape == env.observation_space.shape
     cds = []
@@ -68,24 +70,35 @@ def _episode(env: Any, action: float, seed: int) -> tuple[list[float], dict[str,
         steps += 1
         assert np.isfinite(obs).all() and math.isfinite(reward)
         assert env.observation_space.contains(obs)
-        cds.append(info["Cd"])
+        cds.append((info["Cd"], info["Cl"]))
     assert truncated and not terminated, "the end of the simulated time is a truncation"
     assert steps == env.case_spec.actions_per_episode
     return cds, info
 
 
-@pytest.mark.timeout(600)
-def test_quickstart_runs_coupled_to_pimplefoam_and_the_jets_act(tmp_path: Path) -> None:
+def _cylinder_env(name: str, run_root: Path) -> Any:
+    """A cylinder env on the coarse quickstart mesh, one process, a short pre-run."""
     from gymprecice_tutorials.quickstart.environment import QuickstartEnv
+    from gymprecice_tutorials.recipes import Resolution
+    from gymprecice_tutorials.rotating_cylinder.environment import RotatingCylinderEnv
 
-    env = QuickstartEnv(
-        run_root=tmp_path,
-        # a short pre-run: the flow need not shed, only be a restartable snapshot
-        case_overrides={"prerun_end_time": 0.05, "actions_per_episode": 3},
-    )
+    # the flow need not shed: a restartable snapshot and a few actions are enough
+    short = {"prerun_end_time": 0.05, "actions_per_episode": 3}
+    if name == "jets":
+        return QuickstartEnv(run_root=run_root, case_overrides=short)
+    coarse = {"resolution": Resolution.coarse(), "n_procs": 1}
+    return RotatingCylinderEnv(run_root=run_root, case_overrides={**short, **coarse})
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("actuation", ["jets", "rotation"])
+def test_cylinder_envs_run_coupled_to_pimplefoam_and_the_actuation_acts(
+    actuation: str, tmp_path: Path
+) -> None:
+    env = _cylinder_env(actuation, tmp_path)
     try:
         still, _ = _episode(env, 0.0, seed=1)
-        blowing, info = _episode(env, float(env.action_space.high[0]), seed=1)
+        acting, info = _episode(env, float(env.action_space.high[0]), seed=1)
         run_dir = env.env_dir
     finally:
         env.close()
@@ -93,8 +106,11 @@ def test_quickstart_runs_coupled_to_pimplefoam_and_the_jets_act(tmp_path: Path) 
     log = (run_dir / "fluid-openfoam" / "log.pimpleFoam").read_text(errors="replace")
     assert "Loaded the OpenFOAM-preCICE adapter" in log
     assert "The coupling completed" in log or "ended by preCICE" in log
-    # Full jets change the drag that OpenFOAM computes: the action reached the boundary.
-    assert abs(blowing[-1] - still[-1]) > 1e-3 * abs(still[-1])
+    # The strongest action changes the forces OpenFOAM computes: it reached the boundary
+    # (jets: the drag; rotation: the Magnus lift).
+    key = 0 if actuation == "jets" else 1
+    changed = np.abs(np.asarray(acting[-1]) - np.asarray(still[-1]))[key]
+    assert changed > 1e-3 * max(1.0, abs(still[-1][key]))
     assert info["action"] == [pytest.approx(float(env.action_space.high[0]))]
     # Nothing of the episode's solver is left running after close.
     assert kill_recorded_groups(run_dir) == []

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import atexit
 import os
+import signal
+import threading
 import time
 import weakref
 from collections.abc import Mapping
@@ -126,6 +128,31 @@ def _end_live_episodes() -> None:
             env.close()
         except Exception:
             pass
+
+
+def _end_live_episodes_and_die(signum: int, frame: object) -> None:
+    """SIGTERM/SIGHUP (a scheduler, ``timeout``, a closed terminal): clean up, then die.
+
+    atexit does not run when a signal kills Python, which would leave the solvers waiting
+    for a controller that is gone. The signal is re-raised with its default action, so
+    the process still ends as the sender meant (exit status -signum).
+    """
+    _end_live_episodes()
+    signal.signal(signum, signal.SIG_DFL)
+    os.kill(os.getpid(), signum)
+
+
+def _clean_up_on_termination_signals() -> None:
+    """Install :func:`_end_live_episodes_and_die` where nobody else handles the signal.
+
+    Only signals at their default action are taken (a learner's or a vector worker's own
+    handler stays in charge), and only from the main thread, the one Python allows.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, _end_live_episodes_and_die)
 
 
 class Adapter(gym.Env):
@@ -403,6 +430,7 @@ class Adapter(gym.Env):
         self._episode_active = True
         self._episode_over = False
         _LIVE_ENVS.add(self)
+        _clean_up_on_termination_signals()
         self._apply(state)
         obs = self._get_observation(self._last_read, self.read_var_list)
         info = self._info(state, {"reset_s": time.perf_counter() - started})
