@@ -14,6 +14,7 @@ import importlib.metadata
 import json
 import math
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -281,3 +282,31 @@ def test_plot_with_nothing_to_draw_fails(tmp_path):
     (tmp_path / "empty").mkdir()
     proc = _cli(tmp_path, "plot", "empty")
     assert proc.returncode == 1 and "nothing to draw" in proc.stderr
+
+
+def test_ctrl_c_saves_the_policy_and_the_same_command_resumes(tmp_path):
+    """SIGINT mid-training: exit 130 with model and checkpoint saved, nothing lost."""
+    args = [*TRAIN, "--timesteps", "100000", "--no-progress-bar"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gymprecice", *args],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        monitors = tmp_path / "train" / "monitor"
+        deadline = time.monotonic() + 180
+        while time.monotonic() < deadline and proc.poll() is None:
+            if any(len(p.read_text().splitlines()) > 3 for p in monitors.glob("*.csv")):
+                break  # a few episodes done: the learner is in the middle of its loop
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, out + err
+    assert "interrupted after" in err and "run the same command again to resume" in err
+    assert (tmp_path / "train" / "model.zip").is_file()
+    saved = sorted((tmp_path / "train" / "checkpoints").glob("ppo_*_steps.zip"))
+    assert saved and int(saved[-1].name.split("_")[1]) > 0

@@ -319,14 +319,20 @@ def train(
         ]
         callbacks += _telemetry_callbacks(vec)
         started = time.monotonic()
+        interrupted = False
         if remaining > 0:
-            model.learn(
-                total_timesteps=remaining,
-                callback=CallbackList(callbacks),
-                tb_log_name=CHECKPOINT_PREFIX,
-                reset_num_timesteps=resume is None,
-                progress_bar=progress_bar,
-            )
+            try:
+                model.learn(
+                    total_timesteps=remaining,
+                    callback=CallbackList(callbacks),
+                    tb_log_name=CHECKPOINT_PREFIX,
+                    reset_num_timesteps=resume is None,
+                    progress_bar=progress_bar,
+                )
+            except KeyboardInterrupt:
+                # Ctrl-C: keep what was learnt (the policy lives in this process); the
+                # same command resumes from the checkpoint written below.
+                interrupted = True
         else:
             print(f"gymprecice train: already trained for {done_before} >= {timesteps} steps")
         checkpoints.mkdir(parents=True, exist_ok=True)
@@ -339,6 +345,7 @@ def train(
             "steps_this_run": int(model.num_timesteps) - done_before,
             "seconds": round(time.monotonic() - started, 3),
             "model": str(out / "model.zip"),
+            "interrupted": interrupted,
         }
     finally:
         vec.close()
@@ -431,6 +438,13 @@ def train_command(args: argparse.Namespace) -> int:
         solvers=read_manifest(out)["solvers"],
         extra={"result": result},
     )
+    if result["interrupted"]:
+        print(
+            f"gymprecice train: interrupted after {result['timesteps']} steps; saved "
+            f"{result['model']} and a checkpoint; run the same command again to resume",
+            file=sys.stderr,
+        )
+        return 130
     print(
         f"gymprecice train: {result['timesteps']} steps; model {result['model']}; "
         f"TensorBoard: tensorboard --logdir {out / 'tb'}"
