@@ -533,22 +533,15 @@ def _shared_prerun(
         "openfoam": [str(inst.project_dir), inst.version],
     }
     key = prerun_cache.entry_key(run_dir, skip=skip, parameters=parameters)
-    roots = {_rel_root(run_dir, r): r for r in _roots(run_dir)}
+    roots = {os.path.relpath(r, run_dir): r for r in _roots(run_dir)}  # ".", "processor0"
     with prerun_cache.locked_entry(directory, key) as entry:
         if prerun_cache.restore(entry, run_dir) is not None:
             return
         before = {rel: set(time_names(r)) for rel, r in roots.items()}
         run()
-        written = {
-            rel: sorted(set(time_names(r)) - before[rel])
-            for rel, r in roots.items()
-            if set(time_names(r)) - before[rel]
-        }
+        new = {rel: sorted(set(time_names(r)) - before[rel]) for rel, r in roots.items()}
+        written = {rel: names for rel, names in new.items() if names}
         prerun_cache.store(entry, run_dir, written, f"log.prerun.{app}")
-
-
-def _rel_root(run_dir: Path, root: Path) -> str:
-    return "." if root == run_dir else root.name
 
 
 def _snapshot_names(root: Path, values: list[float], tol: float) -> list[str]:
