@@ -152,3 +152,23 @@ def test_hooks_drive_a_whole_episode_cycle(pm, cylinder_case, solver_for):
     solver.state.clear()
     assert pm.hook.gymprecice_reset_case(solver=solver) is True
     assert isinstance(solver.state["openfoam"], case.PreparedCase)
+
+
+def test_a_misspelt_option_is_refused_before_anything_runs(pm, tmp_path):
+    config = tmp_path / "gymprecice-config.json"
+    solver = SolverContext(
+        name="fluid",
+        kind="openfoam",
+        run_dir=tmp_path / "fluid",  # never looked at: the options fail first
+        source_dir=tmp_path / "fluid-source",
+        env_dir=tmp_path,
+        options={"prerun_end_tme": 0.3, "np": 2},
+        config_file=config,
+    )
+    with pytest.raises(ConfigError) as caught:
+        pm.hook.gymprecice_prepare_case(solver=solver)
+    message = str(caught.value)
+    assert str(config) in message
+    assert "'prerun_end_tme' (did you mean 'prerun_end_time'?)" in message
+    assert "physics_simulation_engine.solvers.fluid.options" in message
+    assert not (tmp_path / "fluid").exists()

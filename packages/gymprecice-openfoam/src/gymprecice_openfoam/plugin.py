@@ -12,7 +12,10 @@ Solver options (``physics_simulation_engine.solvers.<name>.options``):
 ``snapshots``        times (or ``{"train": [...], "eval": [...]}``) to draw episode starts
                      from; ``eval_fraction`` (default 0.25) sets the fixed split
 ``end_time``         controlDict ``endTime`` to use (default: long enough for the coupling)
+``geo``, ``msh``       the gmsh geometry or mesh to convert when the case ships no mesh
 ``solver_args``, ``mpirun_args``, ``prerun_args``, ``prerun_timeout``, ``openfoam_bashrc``
+
+Any other option key is refused when the case is prepared, naming the closest known one.
 
 Outputs (``env.open_output(solver, name, **options)``): ``"probes"`` (option ``field``),
 ``"forces"`` (``which="force"|"moment"``), ``"forceCoeffs"``, or any function-object name
@@ -22,6 +25,7 @@ name and ``start_time`` the first start-time directory read (default: the episod
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -50,12 +54,50 @@ def gymprecice_solver_kinds() -> Mapping[str, str]:
     return {KIND: "OpenFOAM case coupled through the OpenFOAM-preCICE adapter"}
 
 
+#: the solver options this plugin reads (see the module docstring)
+OPTIONS = (
+    "application",
+    "np",
+    "prerun_end_time",
+    "prerun_cache",
+    "initial_time",
+    "snapshots",
+    "eval_fraction",
+    "end_time",
+    "geo",
+    "msh",
+    "solver_args",
+    "mpirun_args",
+    "prerun_args",
+    "prerun_timeout",
+    "openfoam_bashrc",
+)
+
+
 @hookimpl
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     if not _mine(solver):
         return None
+    _check_options(solver)
     case.prepare_case(solver)
     return True
+
+
+def _check_options(solver: SolverContext) -> None:
+    """A misspelt option must not be ignored (``prerun_end_tme`` would skip the pre-run)."""
+    unknown = sorted(set(solver.options) - set(OPTIONS))
+    if not unknown:
+        return
+    hints = []
+    for key in unknown:
+        close = difflib.get_close_matches(key, OPTIONS, n=1)
+        hints.append(f"{key!r} (did you mean {close[0]!r}?)" if close else repr(key))
+    where = str(solver.config_file) if solver.config_file else "the gymprecice configuration"
+    raise ConfigError(
+        f"{where}: {solver.describe()}: unknown option(s) {', '.join(hints)} in "
+        f"physics_simulation_engine.solvers.{solver.name}.options; the OpenFOAM plugin "
+        f"knows {list(OPTIONS)}"
+    )
 
 
 @hookimpl
