@@ -7,7 +7,8 @@
 # tests run for real; then a virtual environment in .venv with the four distributions
 # editable. torch is installed *pinned* before stable-baselines3 so pip takes the CPU build
 # instead of resolving an unpinned torch with several GB of CUDA packages.
-# preCICE itself is in no package registry: see README ("Real preCICE").
+# preCICE itself is in no package registry: see README ("Real preCICE and the adapters");
+# where pkg-config finds one, pyprecice is built against it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -48,4 +49,11 @@ $PIP install -q --disable-pip-version-check \
   -e packages/gymprecice-dealii \
   -e "packages/gymprecice-tutorials[train]" \
   pytest pytest-timeout "ruff==0.17.6" build mpi4py
+# pyprecice compiles against an installed preCICE (in no package registry: README, "Real
+# preCICE and the adapters"); take it whenever pkg-config finds one.
+if command -v pkg-config >/dev/null 2>&1 && pkg-config --exists libprecice \
+  && ! .venv/bin/python -c "import precice" >/dev/null 2>&1; then
+  $PIP install -q --disable-pip-version-check -e "packages/gymprecice-core[precice]" \
+    || echo "setup: pyprecice did not build against preCICE $(pkg-config --modversion libprecice); the tests that need it will be skipped" >&2
+fi
 echo "setup: done (.venv ready)"
