@@ -196,41 +196,40 @@ def test_env_passes_gymnasium_check_env_on_the_double(tmp_path):
     env.close()
 
 
-def test_forgotten_close_leaves_no_process_behind(tmp_path):
+def _script_with_live_episode(tmp_path: Path, then: str) -> str:
+    """Python source: reset an env, print its solver and worker pids, then run ``then``."""
     case = _case(tmp_path, DOUBLE, max_time=10.0)
-    script = f"""
-import sys
-sys.path.insert(0, {str(Path(__file__).parent)!r})
-from test_adapter_coupled import FakeCylinderEnv
-env = FakeCylinderEnv({str(case)!r}, 0, run_root={str(tmp_path / "runs")!r})
-env.reset()
-print(" ".join(str(p.pid) for p in env._session.solvers), env._session.worker.pid, flush=True)
-raise SystemExit(3)  # exits without env.close()
-"""
-    done = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
-    )
-    assert done.returncode == 3, done.stderr
-    pids = [int(p) for p in done.stdout.split()]
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline and any(_alive(pid) for pid in pids):
-        time.sleep(0.1)
-    assert not any(_alive(pid) for pid in pids)
-
-
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
-def test_termination_signal_leaves_no_process_behind(tmp_path, signum):
-    """A scheduler's SIGTERM (or a closed terminal's SIGHUP) skips atexit; core cleans up."""
-    case = _case(tmp_path, DOUBLE, max_time=10.0)
-    script = f"""
+    return f"""
 import sys, time
 sys.path.insert(0, {str(Path(__file__).parent)!r})
 from test_adapter_coupled import FakeCylinderEnv
 env = FakeCylinderEnv({str(case)!r}, 0, run_root={str(tmp_path / "runs")!r})
 env.reset()
 print(" ".join(str(p.pid) for p in env._session.solvers), env._session.worker.pid, flush=True)
-time.sleep(120)
+{then}
 """
+
+
+def _assert_all_gone(pids: list[int]) -> None:
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(pid) for pid in pids):
+        time.sleep(0.1)
+    assert not any(_alive(pid) for pid in pids)
+
+
+def test_forgotten_close_leaves_no_process_behind(tmp_path):
+    script = _script_with_live_episode(tmp_path, "raise SystemExit(3)  # without env.close()")
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 3, done.stderr
+    _assert_all_gone([int(p) for p in done.stdout.split()])
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_termination_signal_leaves_no_process_behind(tmp_path, signum):
+    """A scheduler's SIGTERM (or a closed terminal's SIGHUP) skips atexit; core cleans up."""
+    script = _script_with_live_episode(tmp_path, "time.sleep(120)")
     proc = subprocess.Popen(
         [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
@@ -243,10 +242,7 @@ time.sleep(120)
     finally:
         proc.kill()
         proc.wait()
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline and any(_alive(pid) for pid in pids):
-        time.sleep(0.1)
-    assert not any(_alive(pid) for pid in pids)
+    _assert_all_gone(pids)
 
 
 def _alive(pid: int) -> bool:
