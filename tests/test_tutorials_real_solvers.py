@@ -4,7 +4,8 @@ Everything else tests the tutorials against the preCICE test double and a script
 these tests run them the way users do, with real ``pimpleFoam`` loading the
 OpenFOAM-preCICE adapter (and the deal.II adapter's ``elasticity`` for the flap). They
 are skipped, naming what is missing, on machines without preCICE or the adapters (none
-of the three is in a package registry; the README's "Real preCICE" says how to get them).
+of the three is in a package registry; the README's "Real preCICE and the adapters"
+says how to get them).
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def _episode(
     """(Cd, Cl) after each step of one episode at a constant action; the last step's info."""
     obs, _ = env.reset(seed=seed)
     assert obs.shape == env.observation_space.shape
-    cds = []
+    coefficients = []
     info: dict[str, Any] = {}
     truncated = terminated = False
     steps = 0
@@ -70,10 +71,10 @@ def _episode(
         steps += 1
         assert np.isfinite(obs).all() and math.isfinite(reward)
         assert env.observation_space.contains(obs)
-        cds.append((info["Cd"], info["Cl"]))
+        coefficients.append((info["Cd"], info["Cl"]))
     assert truncated and not terminated, "the end of the simulated time is a truncation"
     assert steps == env.case_spec.actions_per_episode
-    return cds, info
+    return coefficients, info
 
 
 def _cylinder_env(name: str, run_root: Path) -> Any:
