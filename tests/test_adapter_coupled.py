@@ -229,7 +229,10 @@ def test_forgotten_close_leaves_no_process_behind(tmp_path):
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
 def test_termination_signal_leaves_no_process_behind(tmp_path, signum):
     """A scheduler's SIGTERM (or a closed terminal's SIGHUP) skips atexit; core cleans up."""
-    script = _script_with_live_episode(tmp_path, "time.sleep(120)")
+    # A plain process: default dispositions, whatever this test runner inherited (nohup).
+    default = "import signal; signal.signal(signal.SIGTERM, signal.SIG_DFL); "
+    default += "signal.signal(signal.SIGHUP, signal.SIG_DFL)\n"
+    script = default + _script_with_live_episode(tmp_path, "time.sleep(120)")
     proc = subprocess.Popen(
         [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
