@@ -293,6 +293,9 @@ def test_ctrl_c_saves_the_policy_and_the_same_command_resumes(tmp_path):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # as typed in a terminal: a runner started in the background ignores SIGINT, and
+        # Python keeps an ignored SIGINT ignored
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         monitors = tmp_path / "train" / "monitor"
