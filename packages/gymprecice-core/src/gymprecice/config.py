@@ -75,7 +75,7 @@ class PreciceSection(_Strict):
 class ActionsSection(_Strict):
     #: preCICE time windows one env step spans
     windows: int = Field(default=1, ge=1)
-    scheme: Literal["hold", "ramp", "filter"] = "hold"
+    scheme: Literal["hold", "ramp", "cosine", "filter"] = "hold"
     #: exponential filter weight of the new action per window (scheme "filter")
     filter_alpha: float = Field(default=0.1, gt=0.0, le=1.0)
 
