@@ -520,9 +520,13 @@ def test_telemetry_collects_per_step_timings_and_failures(make_vec, tmp_path):
     assert "env 0: 1 (ValueError x1)" in text and "vector env overhead" in text
 
 
-def test_telemetry_prefers_the_adapter_timing():
+@pytest.mark.parametrize("as_timing", [False, True], ids=["dict", "Timing"])
+def test_telemetry_prefers_the_adapter_timing(as_timing):
+    from gymprecice.core import Timing
+
     telemetry = Telemetry(num_envs=1)
-    info = {"timing": {"wait_s": 0.5, "env_s": 0.1, "precice_s": 0.45}}
+    seconds = {"wait_s": 0.5, "env_s": 0.1, "precice_s": 0.45}
+    info = {"timing": Timing(seconds) if as_timing else seconds}  # Timing: what Adapter gives
     telemetry.record_step(info, worker_s=0.7, roundtrip_s=0.71)
     telemetry.record_reset({"timing": {"reset_s": 3.0}}, worker_s=3.2)
     assert telemetry.stats("solver_wait_s").mean == 0.5

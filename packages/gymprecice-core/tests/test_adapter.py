@@ -262,3 +262,29 @@ def test_open_output_gives_one_reader_per_episode_and_closes_it(make_case, base_
         assert first.closed
         assert env.open_output("fluid", "probes", field="p") is not first
         env.close()
+
+
+def test_waiting_for_solver_output_is_timed_as_solver_time() -> None:
+    """Readers from open_output report their waits, which steps count as wait_s."""
+    import time as _time
+
+    from gymprecice.core import _TimedReader
+
+    class Reader:
+        start_time = 8.0
+
+        def wait_until(self, t: float, timeout: float) -> str:
+            _time.sleep(0.05)
+            return f"rows to {t}"
+
+        def read_new(self) -> str:
+            return "new"
+
+    clock = [0.0]
+    reader = _TimedReader(Reader(), clock)
+    assert reader.wait_until(1.0, timeout=2.0) == "rows to 1.0"
+    assert reader.read_new() == "new" and reader.start_time == 8.0
+    assert clock[0] >= 0.05
+    before = clock[0]
+    reader.read_new()
+    assert clock[0] == before  # only waiting counts

@@ -85,7 +85,9 @@ class DataDict(dict):
 class Timing(Mapping[str, float]):
     """Seconds spent in one step or reset: ``precice_s``, ``wait_s``, ``env_s``, ``step_s``.
 
-    Read it like a dict. Two timings compare equal when they measure the same things:
+    ``wait_s`` is the time spent waiting for the solvers: in preCICE, and in the
+    ``wait_until`` of readers from :meth:`Adapter.open_output`; ``env_s`` the rest of the
+    env's own code. Read it like a dict. Two timings compare equal when they measure the same things:
     wall-clock figures describe the machine, not the environment's state, so Gymnasium's
     determinism check (which compares the infos of two identical steps) must not see them.
     """
@@ -155,6 +157,30 @@ def _clean_up_on_termination_signals() -> None:
             signal.signal(signum, _end_live_episodes_and_die)
 
 
+class _TimedReader:
+    """A solver output reader whose ``wait_until`` calls are timed.
+
+    Waiting for a solver's output files is waiting for the solver, as much as waiting in
+    preCICE is; timing it lets ``info["timing"]`` count it as such instead of as env code
+    (an env that waits for a watch point would otherwise look 98 % busy in Python).
+    Everything else goes straight to the plugin's reader.
+    """
+
+    def __init__(self, reader: OutputReader, clock: list[float]) -> None:
+        self._reader = reader
+        self._clock = clock
+
+    def wait_until(self, *args: Any, **kwargs: Any) -> Any:
+        started = time.perf_counter()
+        try:
+            return self._reader.wait_until(*args, **kwargs)  # type: ignore[attr-defined]
+        finally:
+            self._clock[0] += time.perf_counter() - started
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._reader, name)
+
+
 class Adapter(gym.Env):
     """Base class of every gymprecice environment (see the module docstring)."""
 
@@ -197,6 +223,8 @@ class Adapter(gym.Env):
         self._solvers: dict[str, SolverContext] = {}
         self._session: CouplingSession | None = None
         self._readers: dict[tuple[str, str, str], OutputReader] = {}
+        #: seconds the readers spent waiting for solver output in the current step
+        self._output_wait = [0.0]
         self._episode_active = False
         self._episode_over = False
         self._closed = False
@@ -354,8 +382,9 @@ class Adapter(gym.Env):
                 f"no installed plugin opens output {name!r} of solver {solver!r} "
                 f"(kind {self._solvers[solver].kind!r})"
             )
-        self._readers[key] = reader
-        return reader
+        timed = _TimedReader(reader, self._output_wait)
+        self._readers[key] = timed
+        return timed
 
     def _ensure_prepared(self) -> None:
         if self._run is not None:
@@ -457,11 +486,14 @@ class Adapter(gym.Env):
         wait_s = time.perf_counter() - waited
         self._apply(state)
         after = time.perf_counter()
+        self._output_wait[0] = 0.0
         obs = self._get_observation(self._last_read, self.read_var_list)
         reward = float(self._get_reward())
         terminated = bool(self._get_terminated())
         truncated = not state.ongoing and not terminated
-        env_s += time.perf_counter() - after
+        output_wait = self._output_wait[0]
+        wait_s += output_wait  # waiting for a solver's files is waiting for the solver
+        env_s += time.perf_counter() - after - output_wait
         if terminated or truncated:
             self._end_episode(abort=terminated and state.ongoing)
             self._episode_over = True

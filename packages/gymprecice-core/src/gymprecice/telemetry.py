@@ -5,8 +5,8 @@ starved by the solvers, are the solvers idle while the learner updates, does the
 env itself cost anything, are resets the bottleneck? :class:`Telemetry` answers it from
 numbers every layer already measures:
 
-* ``solver_wait_s``: time the env waited for preCICE in a step, i.e. for the solvers
-  (the Adapter's ``info["timing"]["wait_s"]``);
+* ``solver_wait_s``: time the env waited for the solvers in a step, in preCICE or for
+  their output files (the Adapter's ``info["timing"]["wait_s"]``);
 * ``env_s``: time in the env's own Python code in a step (``info["timing"]["env_s"]``;
   for envs that report no timing, the whole ``env.step`` as measured by the worker);
 * ``env_step_s``: the whole ``env.step`` call as measured in the env's worker process;
@@ -38,7 +38,7 @@ __all__ = ["SERIES", "SeriesStats", "Telemetry"]
 
 #: The timing series, in the order the summary prints them, with a label each.
 SERIES: dict[str, str] = {
-    "solver_wait_s": "solver (waiting in preCICE)",
+    "solver_wait_s": "solver (waiting in preCICE or for output)",
     "env_s": "env code",
     "env_step_s": "env.step (whole, in worker)",
     "vector_overhead_s": "vector env overhead",
@@ -178,8 +178,9 @@ class Telemetry:
         Called once per env and step in the learner's process, so it only appends.
         """
         self.steps += 1
-        timing = info.get("timing") if isinstance(info, dict) else None
-        if isinstance(timing, dict):
+        # info["timing"] is the Adapter's Timing: a Mapping, not a dict
+        timing = info.get("timing") if isinstance(info, Mapping) else None
+        if isinstance(timing, Mapping):
             wait = timing.get("wait_s")
             if wait is None:
                 wait = timing.get("precice_s")
