@@ -178,6 +178,8 @@ class _TimedReader:
             self._clock[0] += time.perf_counter() - started
 
     def __getattr__(self, name: str) -> Any:
+        if name in ("_reader", "_clock"):  # not set yet (copy, unpickling): no recursion
+            raise AttributeError(name)
         return getattr(self._reader, name)
 
 
