@@ -131,6 +131,24 @@ def test_check_bad_case_fails(capsys, tmp_path, make_case, base_config) -> None:
     assert err.startswith("FAILED:") and "jet9" in err
 
 
+def test_check_names_the_solver_as_partner_of_a_mesh_the_controller_maps(
+    capsys, case_dir: Path
+) -> None:
+    """The controller's own read mapping must not make it the probe mesh's partner."""
+    status, out, err = run(capsys, "check", str(case_dir))
+    assert status == 0, err
+    assert "interface probe: mesh Controller-Mesh-probe (2D) <-> Fluid:Fluid-Mesh-probe" in out
+    assert "<-> Controller:" not in out
+
+
+def test_check_refuses_junk_after_the_precice_root_element(capsys, case_dir: Path) -> None:
+    xml = case_dir / "precice-config.xml"
+    xml.write_text(xml.read_text() + "<oops")
+    status, out, err = run(capsys, "check", str(case_dir))
+    assert status == 1 and out == ""
+    assert f"{xml}:" in err and "junk after document element" in err
+
+
 def test_check_missing_directory(capsys, tmp_path: Path) -> None:
     status, out, _ = run(capsys, "check", str(tmp_path / "nowhere"), "--json")
     assert status == 1

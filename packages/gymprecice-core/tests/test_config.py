@@ -151,3 +151,24 @@ def test_unknown_kind_lists_installed(case_dir: Path) -> None:
     ):
         check_solver_kinds(cfg, {"openfoam": "OpenFOAM"})
     check_solver_kinds(cfg, {"command": "argv"})
+
+
+def test_misspelled_kind_suggests_the_closest_installed_kind(case_dir: Path) -> None:
+    cfg = load_config(case_dir)
+    cfg.solvers["fluid"].kind = "comand"
+    with pytest.raises(ConfigError) as info:
+        check_solver_kinds(cfg, {"command": "argv", "script": "scripts", "openfoam": "OF"})
+    message = str(info.value)
+    assert "did you mean 'command'?" in message and "solvers.fluid.kind" in message
+    assert "pip install" not in message and str(cfg.file) in message
+
+
+def test_misspelled_core_option_fails_at_load_naming_the_file(case_dir: Path) -> None:
+    path = case_dir / "gymprecice-config.json"
+    raw = json.loads(path.read_text())
+    raw["physics_simulation_engine"]["solvers"]["fluid"]["options"]["reset_timout"] = 5
+    path.write_text(json.dumps(raw))
+    with pytest.raises(ConfigError) as info:
+        load_config(case_dir)
+    assert str(path) in str(info.value)
+    assert "'reset_timout' (did you mean 'reset_timeout'?)" in str(info.value)

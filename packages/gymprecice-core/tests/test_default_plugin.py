@@ -326,3 +326,39 @@ def test_doctor_reports_bash(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) ->
     monkeypatch.setenv("PATH", os.defpath)
     (check,) = default_plugin.gymprecice_doctor_checks()
     assert check.ok is True
+
+
+def test_non_executable_command_file_says_chmod(tmp_path: Path) -> None:
+    """An existing file without the x bit is not 'missing': say how to fix it."""
+    solver = _command_solver(tmp_path, argv=["./solve.sh"])
+    for where in (solver.source_dir, solver.run_dir):
+        _script(where / "solve.sh", "#!/bin/sh\n", executable=False)
+    with pytest.raises(CaseError) as info:
+        default_plugin.gymprecice_launch_solver(solver)
+    assert f"chmod +x {solver.source_dir / 'solve.sh'}" in str(info.value)
+    assert "not executable" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("kind", "typo", "meant"),
+    [("command", "log_nme", "log_name"), ("script", "reset_timout", "reset_timeout")],
+)
+def test_misspelled_option_is_refused_with_the_closest_key(
+    tmp_path: Path, kind: str, typo: str, meant: str
+) -> None:
+    make = _command_solver if kind == "command" else _script_solver
+    solver = make(tmp_path, **{typo: 5})
+    solver.config_file = tmp_path / "gymprecice-config.json"
+    (problem,) = default_plugin.gymprecice_validate_case(solver)
+    assert str(solver.config_file) in problem
+    assert f"{typo!r} (did you mean {meant!r}?)" in problem
+    assert f"solvers.{solver.name}.options" in problem
+    with pytest.raises(ConfigError, match=typo):
+        default_plugin.gymprecice_prepare_case(solver)
+
+
+def test_known_options_pass_validation(tmp_path: Path) -> None:
+    solver = _command_solver(tmp_path, log_name="x.log", reset_timeout=5, outputs="openfoam")
+    assert default_plugin.gymprecice_validate_case(solver) == []
+    other = make_solver_context("openfoam", solver.source_dir, tmp_path, options={"np": 2})
+    assert default_plugin.gymprecice_validate_case(other) is None

@@ -118,3 +118,43 @@ def test_exchange_directory_rewrite_keeps_everything_else(case_dir: Path, tmp_pa
         reread.participants.keys()
         == load_precice_config(case_dir / "precice-config.xml").participants.keys()
     )
+
+
+def test_partner_of_a_mesh_the_controller_maps_itself_is_the_other_participant(
+    case_dir: Path, tmp_path: Path, precice_xml: str
+) -> None:
+    """The controller's own read mapping (Fluid-Mesh-probe -> Controller-Mesh-probe) must
+    not make the controller its own partner."""
+    cfg = load_precice_config(case_dir / "precice-config.xml")
+    assert cfg.mapped_partner_mesh("Controller-Mesh-probe") == ("Fluid", "Fluid-Mesh-probe")
+    # A controller that maps before the solver does, for a mesh both of them map.
+    xml = precice_xml.replace(
+        '<mapping:nearest-neighbor direction="read" from="Fluid-Mesh-probe"',
+        '<receive-mesh name="Fluid-Mesh-jet1" from="Fluid" />\n    '
+        '<mapping:nearest-neighbor direction="write" from="Controller-Mesh-jet1" '
+        'to="Fluid-Mesh-jet1" constraint="consistent" />\n    '
+        '<mapping:nearest-neighbor direction="read" from="Fluid-Mesh-probe"',
+    )
+    path = tmp_path / "controller-maps.xml"
+    path.write_text(xml)
+    cfg = load_precice_config(path)
+    assert cfg.mapped_partner_mesh("Controller-Mesh-jet1") == ("Fluid", "Fluid-Mesh-jet1")
+    assert cfg.mapped_partner_mesh("Controller-Mesh-probe") == ("Fluid", "Fluid-Mesh-probe")
+
+
+@pytest.mark.parametrize("junk", ["<oops", "garbage", "<data:vector name='X' />"])
+def test_junk_after_the_root_element_is_refused(tmp_path: Path, precice_xml: str, junk) -> None:
+    """preCICE refuses such a file; lxml's recovery mode would silently drop the junk."""
+    path = tmp_path / "precice-config.xml"
+    path.write_text(precice_xml + junk)
+    with pytest.raises(ConfigError, match="junk after document element") as info:
+        load_precice_config(path)
+    assert f"{path}:43:" in str(info.value) and "</precice-configuration>" in str(info.value)
+    with pytest.raises(ConfigError, match="junk after document element"):
+        write_with_exchange_directory(path, tmp_path / "copy.xml", tmp_path / "xchg")
+
+
+def test_comments_after_the_root_element_are_fine(tmp_path: Path, precice_xml: str) -> None:
+    path = tmp_path / "precice-config.xml"
+    path.write_text(precice_xml + "<!-- trailing note -->\n\n")
+    assert "Controller" in load_precice_config(path).participants

@@ -11,6 +11,7 @@ fails at construction instead of hanging a coupled run.
 
 from __future__ import annotations
 
+import difflib
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -269,13 +270,20 @@ def check_solver_cases(config: GymPreciceConfig) -> None:
 def check_solver_kinds(config: GymPreciceConfig, kinds: Mapping[str, Any]) -> None:
     """Fail when a solver's ``kind`` has no installed plugin, saying what to install."""
     for solver in config.solvers.values():
-        if solver.kind not in kinds:
-            raise ConfigError(
-                f"{config.where()}: physics_simulation_engine.solvers.{solver.name}.kind is "
-                f"{solver.kind!r}, but no installed plugin handles it; installed kinds: "
-                f"{sorted(kinds)}. Install the plugin (e.g. `pip install gymprecice-{solver.kind}`) "
-                "or fix the kind."
+        if solver.kind in kinds:
+            continue
+        key = f"physics_simulation_engine.solvers.{solver.name}.kind"
+        close = difflib.get_close_matches(solver.kind, list(kinds), n=1)
+        if close:  # a typo of an installed kind, not a missing plugin
+            fix = f"did you mean {close[0]!r}? Set {key} to {close[0]!r}."
+        else:
+            fix = (
+                f"Install the plugin (e.g. `pip install gymprecice-{solver.kind}`) or fix the kind."
             )
+        raise ConfigError(
+            f"{config.where()}: {key} is {solver.kind!r}, but no installed plugin handles it; "
+            f"installed kinds: {sorted(kinds)}. {fix}"
+        )
 
 
 def _solvers(model: ConfigModel, base: Path, where: str) -> dict[str, SolverSpec]:

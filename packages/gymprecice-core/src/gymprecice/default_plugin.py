@@ -46,6 +46,7 @@ This module is loaded on every ``import gymprecice``: it imports nothing heavy a
 
 from __future__ import annotations
 
+import difflib
 import os
 import shlex
 import shutil
@@ -66,6 +67,14 @@ KINDS = {
 }
 #: default seconds a reset script / reset command may take
 DEFAULT_RESET_TIMEOUT = 600.0
+_SHARED_OPTIONS = ("prepare_timeout", "reset_timeout", "env", "log_name")
+#: the options each kind reads (see the module docstring). ``outputs`` is read by other
+#: plugins' output readers (``"openfoam"``: OpenFOAM-format function-object output).
+OPTIONS = {
+    SCRIPT: ("run_script", "reset_script", "prerun_script", "interpreter", *_SHARED_OPTIONS),
+    COMMAND: ("argv", "prepare_argv", "reset_argv", *_SHARED_OPTIONS),
+}
+_FOREIGN_OPTIONS = ("outputs",)
 
 # Log lines that mean the shell could not start something, with what to do about it.
 _LOG_HINTS = (
@@ -89,7 +98,20 @@ def gymprecice_solver_kinds() -> dict[str, str]:
 
 
 @hookimpl(trylast=True)
+def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
+    if solver.kind not in KINDS:
+        return None
+    try:
+        check_options(solver)
+    except ConfigError as exc:
+        return [str(exc)]
+    return []
+
+
+@hookimpl(trylast=True)
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
+    if solver.kind in KINDS:
+        check_options(solver)
     if solver.kind == SCRIPT:
         # Check every script now, so a missing run script fails at the first reset rather
         # than after a long prerun.
@@ -169,6 +191,23 @@ def gymprecice_doctor_checks() -> list[DoctorCheck]:
             advice="" if bash else advice,
         )
     ]
+
+
+def check_options(solver: SolverContext) -> None:
+    """Refuse an option key the kind does not read: ``reset_timout`` must not be ignored."""
+    known = (*OPTIONS[solver.kind], *_FOREIGN_OPTIONS)
+    unknown = sorted(set(solver.options) - set(known))
+    if not unknown:
+        return
+    hints = []
+    for key in unknown:
+        close = difflib.get_close_matches(key, known, n=1)
+        hints.append(f"{key!r} (did you mean {close[0]!r}?)" if close else repr(key))
+    raise ConfigError(
+        f"{_where(solver)}: {solver.describe()}: unknown option(s) {', '.join(hints)} in "
+        f"physics_simulation_engine.solvers.{solver.name}.options; kind {solver.kind!r} "
+        f"knows {list(OPTIONS[solver.kind])}"
+    )
 
 
 # -- kind "script" ---------------------------------------------------------------------------
@@ -266,6 +305,13 @@ def _check_program(solver: SolverContext, program: str, key: str) -> None:
     if os.sep in program:
         path = Path(program) if os.path.isabs(program) else solver.run_dir / program
         found = path.is_file() and os.access(path, os.X_OK)
+        if path.is_file() and not found:
+            pristine = path if os.path.isabs(program) else solver.source_dir / program
+            raise CaseError(
+                f"{pristine}: options.{key} runs this file, but it is not executable; run "
+                f"`chmod +x {pristine}` (or start options.{key} with its interpreter, e.g. "
+                f'["bash", "{program}"]) for {solver.describe()}'
+            )
     else:
         found = shutil.which(program) is not None
     if not found:

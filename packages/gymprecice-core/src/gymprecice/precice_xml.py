@@ -11,6 +11,7 @@ connections (whose exchange directories each env rewrites in its own copy).
 
 from __future__ import annotations
 
+import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -165,21 +166,44 @@ class PreciceConfig:
             )
         return 1 if spec.kind == "scalar" else self.mesh(mesh).dimensions
 
+    def provider_of(self, mesh: str) -> str | None:
+        """The participant that provides ``mesh`` (``<provide-mesh>``), if any."""
+        for participant in self.participants.values():
+            if mesh in participant.provided_meshes:
+                return participant.name
+        return None
+
     def mapped_partner_mesh(self, mesh: str) -> tuple[str, str] | None:
         """For a mesh provided by one participant, the (participant, own mesh) mapped to it.
 
         The controller provides an interface mesh; the solver participant that receives it
         maps between it and one of its own meshes. That own mesh is what a solver plugin
         knows (e.g. the OpenFOAM adapter's interface in ``preciceDict``).
+
+        The mesh's provider is never its own partner: a controller with a read mapping of
+        its own (``from="Fluid-Mesh" to="Controller-Mesh"``, common in preCICE) names the
+        *other* mesh, and the partner is whoever provides that one.
         """
+        owner = self.provider_of(mesh)
         for participant in self.participants.values():
+            if participant.name == owner:
+                continue
             for mapping in participant.mappings:
                 if mapping.from_mesh == mesh:
                     return participant.name, mapping.to_mesh
                 if mapping.to_mesh == mesh:
                     return participant.name, mapping.from_mesh
+        if owner is not None:
+            for mapping in self.participants[owner].mappings:
+                other = {mapping.from_mesh, mapping.to_mesh} - {mesh}
+                if mesh not in (mapping.from_mesh, mapping.to_mesh) or len(other) != 1:
+                    continue
+                (other_mesh,) = other
+                partner = self.provider_of(other_mesh)
+                if partner is not None and partner != owner:
+                    return partner, other_mesh
         for participant in self.participants.values():
-            if mesh in participant.received_meshes:
+            if participant.name != owner and mesh in participant.received_meshes:
                 return participant.name, mesh
         return None
 
@@ -210,6 +234,7 @@ def parse_tree(path: Path, *, keep_comments: bool = False) -> etree._ElementTree
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: preCICE configuration file not found")
+    _check_well_formed(path)
     parser = etree.XMLParser(recover=True, remove_comments=not keep_comments)
     tree = etree.parse(str(path), parser)
     fatal = [e for e in parser.error_log if e.domain_name != "NAMESPACE"]
@@ -218,6 +243,28 @@ def parse_tree(path: Path, *, keep_comments: bool = False) -> etree._ElementTree
         where = f"{path}:{first.line}" if first else str(path)
         raise ConfigError(f"{where}: not well-formed XML: {first.message if first else 'empty'}")
     return tree
+
+
+def _check_well_formed(path: Path) -> None:
+    """Refuse what preCICE's own parser refuses, such as junk after the root element.
+
+    lxml in recovery mode silently stops at the end of the root element, so ``<oops``
+    appended to a file would pass, and the per-env copy (re-serialised) would even run,
+    while preCICE rejects the original. Expat without namespace processing reads
+    ``data:vector`` as a plain tag name, so it checks well-formedness and nothing else.
+    """
+    parser = xml.parsers.expat.ParserCreate()
+    try:
+        parser.Parse(path.read_bytes(), True)
+    except xml.parsers.expat.ExpatError as exc:
+        reason = xml.parsers.expat.errors.messages[exc.code] if exc.code else str(exc)
+        fix = "fix the XML at that line"
+        if reason == xml.parsers.expat.errors.XML_ERROR_JUNK_AFTER_DOC_ELEMENT:
+            fix = "delete what follows </precice-configuration> (only comments may)"
+        raise ConfigError(
+            f"{path}:{exc.lineno}:{exc.offset + 1}: not well-formed XML: {reason}; preCICE "
+            f"refuses this file too: {fix}"
+        ) from None
 
 
 def load_precice_config(path: str | Path) -> PreciceConfig:
