@@ -141,6 +141,18 @@ def test_check_log_cases(tmp_path):
     log.write_text(V1912_WARNING + "Time = 0.001\n" * 5)
     message = checks.check_log(run_dir, log, "Time = 0.002\n")
     assert message.startswith(str(log)) and "Could not load" in message
+    assert "'libpreciceAdapterFunctionObject.so', as written in controlDict" in message
+    # A misspelled library: the message names it as written, and the right name.
+    ctl.write_text(
+        testing.control_dict(adapter=True).replace(
+            '"libpreciceAdapterFunctionObject.so"', '"libpreciceAdapterFunctionObjekt.so"'
+        )
+    )
+    log.write_text(V1912_WARNING.replace("FunctionObject.so", "FunctionObjekt.so"))
+    message = checks.check_log(run_dir, log, "")
+    assert "'libpreciceAdapterFunctionObjekt.so', as written in controlDict" in message
+    assert "named 'libpreciceAdapterFunctionObject.so': fix 'libs' there" in message
+    ctl.write_text(testing.control_dict(adapter=True))
     # A loaded adapter that fails its configuration.
     log.write_text("\x1b[31mError in the preCICE adapter: \x1b[0m\nPatch 'jet3' does not exist.\n")
     message = checks.check_log(run_dir, log, "")

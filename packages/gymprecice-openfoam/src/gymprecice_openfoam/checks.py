@@ -25,6 +25,7 @@ type" lines). The adapter's own failures read "Error in the preCICE adapter:" (f
 
 from __future__ import annotations
 
+import difflib
 import re
 import shutil
 from pathlib import Path
@@ -33,6 +34,7 @@ from gymprecice.errors import CaseError
 from gymprecice.solver import DoctorCheck, SolverContext
 from gymprecice_openfoam import control
 from gymprecice_openfoam.installation import ADAPTER_LIBRARY, find_openfoam
+from gymprecice_openfoam.mesh import PreciceDict, processor_dirs, read_boundary, read_precice_dict
 
 _LOAD_FAILURE = re.compile(
     r"Could not (?:load|open library)\s+\"?[^\"\n]*preciceAdapterFunctionObject[^\n]*"
@@ -55,6 +57,14 @@ def _log_text(log_file: Path | None, tail: str) -> str:
     return _ANSI.sub("", head + "\n" + (tail or ""))
 
 
+def _written_libraries(run_dir: Path) -> list[str]:
+    """The adapter library names controlDict loads, exactly as written there."""
+    try:
+        return control.adapter_libraries(run_dir)
+    except CaseError:
+        return []
+
+
 def check_log(run_dir: Path, log_file: Path | None, log_text: str) -> str | None:
     """Say why the solver cannot couple, or ``None`` when nothing points to that.
 
@@ -66,13 +76,22 @@ def check_log(run_dir: Path, log_file: Path | None, log_text: str) -> str | None
     failures = sorted({m.group(0).strip() for m in _LOAD_FAILURE.finditer(text)})
     if failures:
         quoted = "\n".join(f"    {line}" for line in failures[:6])
+        written = _written_libraries(run_dir)
+        named = ", ".join(repr(lib) for lib in written) or repr(ADAPTER_LIBRARY)
+        odd = [lib for lib in written if lib != ADAPTER_LIBRARY]
+        spelling = (
+            f"controlDict ({control.control_dict_path(run_dir)}) loads {named}, but the "
+            f"adapter's library is named {ADAPTER_LIBRARY!r}: fix 'libs' there, or "
+            if odd
+            else ""
+        )
         return (
-            f"{where}: OpenFOAM could not load the preCICE adapter ({ADAPTER_LIBRARY}) and "
-            "only warned, so the solver runs UNCOUPLED and the controller would wait for it "
-            f"forever. OpenFOAM said:\n{quoted}\n"
-            "Fix: build and install the OpenFOAM-preCICE adapter for this OpenFOAM version "
-            f"(it installs {ADAPTER_LIBRARY} into $FOAM_USER_LIBBIN), make sure libprecice "
-            "is on LD_LIBRARY_PATH, and check with `gymprecice doctor`."
+            f"{where}: OpenFOAM could not load the preCICE adapter ({named}, as written in "
+            "controlDict) and only warned, so the solver runs UNCOUPLED and the controller "
+            f"would wait for it forever. OpenFOAM said:\n{quoted}\n"
+            f"Fix: {spelling}build and install the OpenFOAM-preCICE adapter for this OpenFOAM "
+            f"version (it installs {ADAPTER_LIBRARY} into $FOAM_USER_LIBBIN), make sure "
+            "libprecice is on LD_LIBRARY_PATH, and check with `gymprecice doctor`."
         )
     errors = sorted({m.group(0).strip() for m in _ADAPTER_ERROR.finditer(text)})
     if errors:
@@ -94,6 +113,128 @@ def check_log(run_dir: Path, log_file: Path | None, log_text: str) -> str | None
             f"add to system/controlDict: {control.ADAPTER_SNIPPET}"
         )
     return None
+
+
+def validate_case(solver: SolverContext) -> list[str]:
+    """Problems of a pristine OpenFOAM case that would only show once it runs.
+
+    Each names the file at fault and the fix: the adapter missing from or disabled in
+    controlDict, a preciceDict whose participant, meshes, data or preCICE file disagree
+    with the preCICE configuration, and interface patches the mesh does not have.
+    """
+    case_dir = Path(solver.run_dir)
+    problems: list[str] = []
+    try:
+        problems += _control_dict_problems(case_dir)
+    except CaseError as exc:
+        return [str(exc)]
+    if not (case_dir / "system" / "preciceDict").is_file() and not problems:
+        return [
+            f"{case_dir / 'system' / 'preciceDict'}: missing; the OpenFOAM-preCICE adapter "
+            "reads its participant, preCICE file and interfaces from it"
+        ]
+    try:
+        pdict = read_precice_dict(case_dir)
+    except CaseError as exc:
+        return [*problems, str(exc)]
+    problems += _precice_dict_problems(solver, pdict)
+    problems += _patch_problems(case_dir, pdict)
+    return problems
+
+
+def _control_dict_problems(case_dir: Path) -> list[str]:
+    path = control.control_dict_path(case_dir)
+    if not control.has_adapter(case_dir):
+        return [
+            f"{path}: no preCICE adapter function object, so the solver would run "
+            "uncoupled and the controller would wait for it forever; add to "
+            f"system/controlDict: {control.ADAPTER_SNIPPET}"
+        ]
+    return [
+        f"{path}: the preCICE adapter entry {name!r} has 'enabled false;', so OpenFOAM "
+        "skips it and the solver would run uncoupled; delete that line (or set "
+        "'enabled true;')"
+        for name in control.disabled_adapter_entries(case_dir)
+    ]
+
+
+def _precice_dict_problems(solver: SolverContext, pdict: PreciceDict) -> list[str]:
+    precice = solver.precice
+    if precice is None:
+        return []
+    xml = solver.precice_config_file or precice.path
+    problems = []
+    wanted = solver.participant
+    if pdict.participant is None:
+        return [f"{pdict.path}: no 'participant' entry; add 'participant {wanted or '...'};'"]
+    if pdict.participant not in precice.participants:
+        problems.append(
+            f"{pdict.path}: participant {pdict.participant!r} is not a participant of {xml} "
+            f"(those are {sorted(precice.participants)}); set 'participant "
+            f"{wanted or '<one of them>'};' there"
+        )
+        return problems
+    if wanted and pdict.participant != wanted:
+        problems.append(
+            f"{pdict.path}: participant {pdict.participant!r}, but the gymprecice "
+            f"configuration says this solver plays {wanted!r}; set 'participant {wanted};' "
+            "there (or fix the solver's participant in gymprecice-config.json)"
+        )
+    if pdict.config and solver.precice_config_file is not None:
+        named = (Path(solver.run_dir) / pdict.config).resolve()
+        if named != Path(solver.precice_config_file).resolve():
+            problems.append(
+                f"{pdict.path}: preciceConfig {pdict.config!r} is {named}, not the preCICE "
+                f"configuration of this case ({solver.precice_config_file}); set preciceConfig "
+                "to that file, relative to the OpenFOAM case"
+            )
+    me = precice.participants[pdict.participant]
+    for interface in pdict.interfaces:
+        if interface.mesh not in me.provided_meshes:
+            what = (
+                f"which {xml} does not define"
+                if interface.mesh not in precice.meshes
+                else f"which participant {pdict.participant!r} does not <provide-mesh> in {xml}"
+            )
+            problems.append(
+                f"{pdict.path}: interface {interface.name!r} uses mesh {interface.mesh!r}, "
+                f"{what}; the meshes {pdict.participant!r} provides there are "
+                f"{me.provided_meshes}. Set 'mesh' to one of them (or fix the XML)."
+            )
+            continue
+        for data in (*interface.read_data, *interface.write_data):
+            if data not in precice.data:
+                problems.append(
+                    f"{pdict.path}: interface {interface.name!r} exchanges data {data!r}, "
+                    f"which {xml} does not define (its data are {sorted(precice.data)}); fix "
+                    "readData/writeData"
+                )
+    return problems
+
+
+def _patch_problems(case_dir: Path, pdict: PreciceDict) -> list[str]:
+    """Interface patches the case's mesh lacks (only when the mesh is already there)."""
+    boundary = case_dir / "constant" / "polyMesh" / "boundary"
+    if not boundary.is_file():
+        processors = processor_dirs(case_dir)
+        boundary = processors[0] / "constant" / "polyMesh" / "boundary" if processors else boundary
+    if not boundary.is_file():
+        return []  # the mesh is generated when the case is prepared
+    try:
+        names = [patch.name for patch in read_boundary(boundary.parent)]
+    except CaseError as exc:
+        return [str(exc)]
+    problems = []
+    for interface in pdict.interfaces:
+        for patch in interface.patches:
+            if patch not in names:
+                close = difflib.get_close_matches(patch, names, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                problems.append(
+                    f"{pdict.path}: interface {interface.name!r} names patch {patch!r}, which "
+                    f"{boundary} does not have{hint}; its patches are {names}"
+                )
+    return problems
 
 
 def check_solver(solver: SolverContext, log_text: str, log_name: str | None) -> str | None:

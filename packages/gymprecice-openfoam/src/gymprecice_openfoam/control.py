@@ -189,3 +189,41 @@ def float_entry(case_dir: str | os.PathLike[str], key: str, default: float) -> f
         return float(value)
     except (TypeError, ValueError):
         return default
+
+
+def _disabled(entry: object) -> bool:
+    """OpenFOAM reads ``enabled`` as a Switch (false/off/no/none/0) and skips the object."""
+    if not isinstance(entry, dict) or "enabled" not in entry:
+        return False
+    value = entry["enabled"]
+    if isinstance(value, str):
+        return value.strip().lower() in ("false", "off", "no", "n", "f", "none")
+    return not bool(value)
+
+
+def disabled_adapter_entries(case_dir: str | os.PathLike[str]) -> list[str]:
+    """Names of adapter entries in ``functions`` that say ``enabled false;``."""
+    functions = read_control_dict(case_dir).get("functions")
+    if isinstance(functions, dict):
+        items = list(functions.items())
+    elif isinstance(functions, list):
+        items = [(str(i), entry) for i, entry in enumerate(functions)]
+    else:
+        items = []
+    return [name for name, entry in items if _is_adapter(entry) and _disabled(entry)]
+
+
+def adapter_libraries(case_dir: str | os.PathLike[str]) -> list[str]:
+    """The library names the adapter entries load, as written in controlDict."""
+    functions = read_control_dict(case_dir).get("functions")
+    entries = functions.values() if isinstance(functions, dict) else functions or ()
+    names: list[str] = []
+    for entry in entries:
+        if not _is_adapter(entry):
+            continue
+        libs = entry.get("libs", entry.get("functionObjectLibs", ()))
+        for lib in [libs] if isinstance(libs, str) else libs or ():
+            name = str(lib).strip('"')
+            if name not in names:
+                names.append(name)
+    return names

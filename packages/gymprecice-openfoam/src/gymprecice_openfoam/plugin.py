@@ -32,6 +32,7 @@ from typing import Any
 
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.hookspecs import hookimpl
+from gymprecice.precice_xml import ParticipantSpec
 from gymprecice.solver import (
     DoctorCheck,
     InterfaceGeometry,
@@ -72,6 +73,18 @@ OPTIONS = (
     "prerun_timeout",
     "openfoam_bashrc",
 )
+
+
+@hookimpl
+def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
+    """``gymprecice check`` and env construction: the case against the preCICE XML."""
+    if not _mine(solver):
+        return None
+    try:
+        _check_options(solver)
+    except ConfigError as exc:
+        return [str(exc), *checks.validate_case(solver)]
+    return checks.validate_case(solver)
 
 
 @hookimpl
@@ -146,7 +159,9 @@ def gymprecice_interface_geometry(
     run_dir = Path(solver.run_dir)
     if not (run_dir / "system" / "preciceDict").is_file():
         return None
-    if meshes.read_precice_dict(run_dir).interface_for_mesh(mesh) is None:
+    pdict = meshes.read_precice_dict(run_dir)
+    if pdict.interface_for_mesh(mesh) is None:
+        _refuse_unknown_mesh(solver, pdict, mesh)
         return None
     dimensions = 3
     if solver.precice is not None and mesh in solver.precice.meshes:
@@ -155,6 +170,27 @@ def gymprecice_interface_geometry(
         run_dir, mesh, dimensions=dimensions, parallel=_parallel(solver)
     )
 
+
+def _refuse_unknown_mesh(solver: SolverContext, pdict: meshes.PreciceDict, mesh: str) -> None:
+    """The XML gives ``mesh`` to this case's participant, yet preciceDict does not use it.
+
+    Only then is the mismatch this case's fault; a mesh of another participant is simply
+    not ours to describe.
+    """
+    precice = solver.precice
+    if precice is None or pdict.participant is None:
+        return
+    if mesh not in precice.participants.get(pdict.participant, _NOBODY).provided_meshes:
+        return
+    used = [i.mesh for i in pdict.interfaces]
+    raise CaseError(
+        f"{pdict.path}: participant {pdict.participant!r} provides mesh {mesh!r} in "
+        f"{solver.precice_config_file or precice.path}, but no interface of preciceDict uses "
+        f"it (preciceDict's meshes: {used}); set that interface's 'mesh' to {mesh!r}"
+    )
+
+
+_NOBODY = ParticipantSpec(name="")
 
 _TYPES = {"probes": "probes", "forces": "forces", "forceCoeffs": "forceCoeffs"}
 

@@ -1,0 +1,181 @@
+"""`gymprecice check` on OpenFOAM cases: what would only fail (or silently not couple) at
+run time is reported at load time, naming the file and the fix."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from gymprecice.cli import main
+from gymprecice.testing.chaos import PRECICE_XML
+from gymprecice_openfoam import testing
+
+BOUNDARY = testing.HEADER.format(cls="polyBoundaryMesh", obj="boundary") + (
+    "3\n(\n"
+    "    jet1 { type patch; nFaces 1; startFace 0; }\n"
+    "    jet2 { type patch; nFaces 1; startFace 1; }\n"
+    "    walls { type wall; nFaces 1; startFace 2; }\n"
+    ")\n"
+)
+INTERFACES = {
+    "Jet1": {"mesh": "Fluid-Mesh-jet1", "patches": ["jet1"], "read": ["Velocity"]},
+    "Jet2": {"mesh": "Fluid-Mesh-jet2", "patches": ["jet2"], "read": ["Velocity"]},
+}
+
+
+def _case(root: Path, *, options: dict | None = None) -> Path:
+    fluid = root / "fluid-openfoam"
+    (fluid / "system").mkdir(parents=True)
+    (fluid / "constant" / "polyMesh").mkdir(parents=True)
+    (fluid / "system" / "controlDict").write_text(testing.control_dict())
+    (fluid / "system" / "preciceDict").write_text(testing.precice_dict(INTERFACES))
+    (fluid / "constant" / "polyMesh" / "boundary").write_text(BOUNDARY)
+    (root / "precice-config.xml").write_text(PRECICE_XML.format(end_time=0.01, window=0.001))
+    config = {
+        "physics_simulation_engine": {
+            "solvers": {
+                "fluid": {
+                    "kind": "openfoam",
+                    "path": "fluid-openfoam",
+                    "participant": "Fluid",
+                    "options": options or {},
+                }
+            }
+        },
+        "controller": {"write_to": {"jet1": "Velocity", "jet2": "Velocity"}},
+    }
+    (root / "gymprecice-config.json").write_text(json.dumps(config))
+    return root
+
+
+def _edit(path: Path, old: str, new: str) -> None:
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+
+
+def _check(capsys, case: Path) -> tuple[int, str]:
+    status = main(["check", str(case)])
+    return status, capsys.readouterr().err
+
+
+def test_a_good_case_passes(capsys, tmp_path: Path) -> None:
+    status, err = _check(capsys, _case(tmp_path))
+    assert status == 0, err
+
+
+def test_no_adapter_in_control_dict(capsys, tmp_path: Path) -> None:
+    case = _case(tmp_path)
+    control = case / "fluid-openfoam" / "system" / "controlDict"
+    control.write_text(testing.control_dict(adapter=False))
+    status, err = _check(capsys, case)
+    assert status == 1
+    assert f"{control}: no preCICE adapter function object" in err
+    assert "preciceAdapterFunctionObject" in err  # the snippet to paste
+
+
+@pytest.mark.parametrize("switch", ["false", "off", "no"])
+def test_a_disabled_adapter(capsys, tmp_path: Path, switch: str) -> None:
+    case = _case(tmp_path)
+    control = case / "fluid-openfoam" / "system" / "controlDict"
+    _edit(
+        control,
+        "type preciceAdapterFunctionObject;",
+        f"type preciceAdapterFunctionObject; enabled {switch};",
+    )
+    status, err = _check(capsys, case)
+    assert status == 1
+    assert f"{control}: the preCICE adapter entry 'preCICE_Adapter' has 'enabled false;'" in err
+
+
+def test_a_mesh_name_absent_from_the_xml(capsys, tmp_path: Path) -> None:
+    case = _case(tmp_path)
+    pdict = case / "fluid-openfoam" / "system" / "preciceDict"
+    _edit(pdict, "mesh Fluid-Mesh-jet1;", "mesh Fluid-Mesh-jetX;")
+    status, err = _check(capsys, case)
+    assert status == 1
+    assert f"{pdict}: interface 'Jet1' uses mesh 'Fluid-Mesh-jetX'" in err
+    assert str(case / "precice-config.xml") in err and "'Fluid-Mesh-jet1'" in err
+
+
+def test_a_patch_absent_from_the_boundary_file(capsys, tmp_path: Path) -> None:
+    case = _case(tmp_path)
+    pdict = case / "fluid-openfoam" / "system" / "preciceDict"
+    _edit(pdict, "jet2\n", "jett2\n")
+    status, err = _check(capsys, case)
+    assert status == 1
+    assert f"{pdict}: interface 'Jet2' names patch 'jett2'" in err
+    assert "did you mean 'jet2'?" in err
+    assert str(case / "fluid-openfoam" / "constant" / "polyMesh" / "boundary") in err
+
+
+@pytest.mark.parametrize(
+    ("participant", "message"),
+    [
+        ("Solid", "participant 'Solid' is not a participant of"),
+        ("Controller", "the gymprecice configuration says this solver plays 'Fluid'"),
+    ],
+)
+def test_a_wrong_participant(capsys, tmp_path: Path, participant: str, message: str) -> None:
+    case = _case(tmp_path)
+    pdict = case / "fluid-openfoam" / "system" / "preciceDict"
+    _edit(pdict, "participant Fluid;", f"participant {participant};")
+    status, err = _check(capsys, case)
+    assert status == 1
+    assert f"{pdict}:" in err and message in err and "participant Fluid;" in err
+
+
+def test_a_precice_config_path_elsewhere(capsys, tmp_path: Path) -> None:
+    case = _case(tmp_path)
+    pdict = case / "fluid-openfoam" / "system" / "preciceDict"
+    _edit(pdict, '"../precice-config.xml"', '"../other.xml"')
+    status, err = _check(capsys, case)
+    assert status == 1
+    assert f"{pdict}: preciceConfig '../other.xml'" in err
+
+
+def test_a_misspelled_plugin_option(capsys, tmp_path: Path) -> None:
+    case = _case(tmp_path, options={"prerun_endtime": 0.1})
+    status, err = _check(capsys, case)
+    assert status == 1
+    assert str(case / "gymprecice-config.json") in err
+    assert "'prerun_endtime' (did you mean 'prerun_end_time'?)" in err
+
+
+def test_geometry_of_a_mesh_preciceDict_does_not_use_names_both_meshes(tmp_path: Path) -> None:
+    """At run time too: preciceDict's mesh names against the XML's, not 'call
+    set_interface_vertices'."""
+    from gymprecice.errors import CaseError
+    from gymprecice.precice_xml import load_precice_config
+    from gymprecice.solver import SolverContext
+    from gymprecice_openfoam import plugin
+
+    case = _case(tmp_path)
+    pdict = case / "fluid-openfoam" / "system" / "preciceDict"
+    _edit(pdict, "mesh Fluid-Mesh-jet1;", "mesh Fluid-Mesh-jetX;")
+    solver = SolverContext(
+        name="fluid",
+        kind="openfoam",
+        run_dir=case / "fluid-openfoam",
+        source_dir=case / "fluid-openfoam",
+        env_dir=case,
+        participant="Fluid",
+        precice=load_precice_config(case / "precice-config.xml"),
+        precice_config_file=case / "precice-config.xml",
+    )
+    with pytest.raises(CaseError) as info:
+        plugin.gymprecice_interface_geometry(
+            solver=solver, interface="jet1", mesh="Fluid-Mesh-jet1"
+        )
+    message = str(info.value)
+    assert message.startswith(f"{pdict}: participant 'Fluid' provides mesh 'Fluid-Mesh-jet1'")
+    assert "'Fluid-Mesh-jetX'" in message
+    # A mesh of another participant is not this case's to describe.
+    assert (
+        plugin.gymprecice_interface_geometry(
+            solver=solver, interface="jet1", mesh="Controller-Mesh-jet1"
+        )
+        is None
+    )
