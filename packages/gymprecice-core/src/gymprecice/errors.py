@@ -7,6 +7,8 @@ hierarchy lets a training loop tell a broken configuration (stop) from a failed 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 
 class GymPreciceError(Exception):
     """Base class of every error gymprecice raises on purpose."""
@@ -40,15 +42,24 @@ class SolverError(GymPreciceError, RuntimeError):
         returncode: int | None = None,
         log_tail: str = "",
         log_file: str | None = None,
+        error_lines: Sequence[str] | None = None,
     ) -> None:
         self.env_index = env_index
         self.solver = solver
         self.returncode = returncode
         self.log_tail = log_tail
         self.log_file = log_file
+        if error_lines is None:  # the solver's own error lines, wherever they are in its log
+            from gymprecice.logscan import error_lines as scan
+
+            error_lines = scan(log_file)
+        self.error_lines = tuple(error_lines)
         text = message
         if log_file:
             text += f"\n  log: {log_file}"
+        shown = [line for line in self.error_lines if line not in log_tail]
+        if shown:
+            text += "\n  error lines in the log:\n" + "\n".join("    " + line for line in shown)
         if log_tail:
             tail = "\n".join("    " + line for line in log_tail.rstrip().splitlines())
             text += f"\n  last lines of the log:\n{tail}"
@@ -67,11 +78,14 @@ class SolverError(GymPreciceError, RuntimeError):
                 self.returncode,
                 self.log_tail,
                 self.log_file,
+                self.error_lines,
             ),
         )
 
 
-def _rebuild_solver_error(cls, summary, env_index, solver, returncode, log_tail, log_file):
+def _rebuild_solver_error(
+    cls, summary, env_index, solver, returncode, log_tail, log_file, error_lines=None
+):
     return cls(
         summary,
         env_index=env_index,
@@ -79,6 +93,7 @@ def _rebuild_solver_error(cls, summary, env_index, solver, returncode, log_tail,
         returncode=returncode,
         log_tail=log_tail,
         log_file=log_file,
+        error_lines=error_lines,
     )
 
 
