@@ -353,7 +353,8 @@ def test_kill_recorded_groups_recognises_leaderless_group_by_token(tmp_path):
     registry = PidRegistry(tmp_path / "env")
     spec = LaunchSpec(["sh", "-c", "sleep 1000 & echo $! > bg.pid"], tmp_path)
     proc = SolverProcess.start("s", spec, registry=registry)
-    assert proc.wait(5) == 0  # the leader is gone and reaped, its background job lives on
+    assert proc.wait(5) == 0
+    proc._popen.wait()  # the leader is gone and reaped (as by init), its background job lives on
     background = int((tmp_path / "bg.pid").read_text())
     [record] = registry.entries()
     try:

@@ -5,7 +5,7 @@ the other participant dies instead of raising. Nothing inside the blocked proces
 interrupt it, so the participant lives here, in a child of the env process, and the env
 watches it from outside and kills it when a solver crashes or hangs.
 
-Started as ``python -m gymprecice._worker FD``: FD is one end of a socket pair on which
+Started as ``python -m gymprecice._worker FD PARENT_PID``: FD is one end of a socket pair on which
 the env sends requests and this process answers, one reply per request:
 
 ``("init", {...})``      create the participant, set vertices, initial data, initialize
@@ -31,14 +31,21 @@ import numpy as np
 DataKey = tuple[str, str]  # (mesh, data)
 
 
-def _die_with_parent() -> None:
-    """Ask Linux to SIGKILL us when the env process dies, so no worker outlives its env."""
+def _die_with_parent(parent: int | None) -> None:
+    """Ask Linux to SIGKILL us when the env process dies, so no worker outlives its env.
+
+    ``PR_SET_PDEATHSIG`` fires when the *thread* that forked us exits; the env forks the
+    worker from a thread that lasts as long as its process. An env that died before the
+    request took effect is seen here: our parent is then no longer ``parent``.
+    """
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         pr_set_pdeathsig = 1
         libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
     except (OSError, AttributeError):
         pass
+    if parent is not None and os.getppid() != parent:
+        os._exit(1)
 
 
 class _Session:
@@ -180,7 +187,7 @@ def _say(message: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    _die_with_parent()
+    _die_with_parent(int(argv[1]) if len(argv) > 1 else None)
     _say("started")
     conn = Connection(int(argv[0]))
     return serve(conn)

@@ -422,7 +422,11 @@ class Adapter(gym.Env):
         self._ensure_prepared()
         assert self._run is not None
         registry = PidRegistry(self._run.root)
-        worker = WorkerProcess(self._run.state_dir / "coupling-worker.log", registry)
+        worker = WorkerProcess(
+            self._run.state_dir / "coupling-worker.log",
+            registry,
+            io_timeout=self._timeouts.progress,
+        )
         processes: list[SolverProcess] = []
         try:
             episode_seed = int(self.np_random.integers(2**63 - 1))

@@ -13,17 +13,23 @@ starts clean.
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
+import queue
 import signal
 import socket
+import struct
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -34,7 +40,16 @@ from gymprecice.errors import (
     SolverError,
     SolverTimeoutError,
 )
-from gymprecice.processes import PidRegistry, SolverProcess, describe_returncode, read_tail
+from gymprecice.pidregistry import KILL_WAIT_S
+from gymprecice.processes import (
+    PidRegistry,
+    SolverProcess,
+    describe_returncode,
+    launch,
+    read_tail,
+)
+
+log = logging.getLogger(__name__)
 
 DataKey = tuple[str, str]
 #: how long a solver that exited while we wait may still be followed by the worker's reply
@@ -58,52 +73,90 @@ class CouplingState:
 
 
 class WorkerProcess:
-    """The coupling worker child: a socket-pair connection, a pidfd and a log file."""
+    """The coupling worker child: a socket-pair connection, an exit notifier and a log file.
 
-    def __init__(self, log_path: Path, registry: PidRegistry | None = None) -> None:
+    Recorded in the pid registry like a solver (group, start time, launch token), so a
+    supervisor never mistakes a later holder of its pid for it. It asks the kernel to
+    SIGKILL it when the thread that forked it exits (``PR_SET_PDEATHSIG`` follows the
+    *thread*, not the process), so it is forked from a thread that lives as long as the
+    process (:func:`_call_in_lasting_thread`): an env reset from a worker thread of a
+    ``ThreadPoolExecutor`` keeps its coupling worker after that thread ends.
+    """
+
+    def __init__(
+        self, log_path: Path, registry: PidRegistry | None = None, *, io_timeout: float = 120.0
+    ) -> None:
         parent, child = socket.socketpair()
+        # A request or reply larger than the socket buffer blocks until the other side
+        # reads; a stopped worker never does. The kernel ends such a send or receive
+        # after ``io_timeout`` seconds (an OSError: the worker counts as gone).
+        timeval = struct.pack("ll", int(io_timeout), int(io_timeout % 1 * 1e6))
+        for option in (socket.SO_SNDTIMEO, socket.SO_RCVTIMEO):
+            parent.setsockopt(socket.SOL_SOCKET, option, timeval)
         self.log_path = log_path
-        with open(log_path, "ab") as log:
-            self.popen = subprocess.Popen(
-                [sys.executable, "-m", "gymprecice._worker", str(child.fileno())],
-                pass_fds=(child.fileno(),),
-                stdin=subprocess.DEVNULL,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-                # the worker needs no plugins: skip loading them (a faster reset)
-                env={**os.environ, "GYMPRECICE_DISABLE_PLUGINS": "1"},
-            )
-        child.close()
+        env = {**os.environ, "GYMPRECICE_DISABLE_PLUGINS": "1"}  # the worker needs no plugins
+        argv = [sys.executable, "-m", "gymprecice._worker", str(child.fileno()), str(os.getpid())]
+        try:
+            with open(log_path, "ab") as log:
+                launched = _call_in_lasting_thread(
+                    lambda: launch(
+                        argv,
+                        cwd=None,
+                        env=env,
+                        stdout=log.fileno(),
+                        pass_fds=(child.fileno(),),
+                        registry=registry,
+                    )
+                )
+        except BaseException:
+            parent.close()
+            raise
+        finally:
+            child.close()
+        self.popen = launched.popen
+        self.record = launched.record
         self.conn = Connection(parent.detach())
         self.pid = self.popen.pid
-        self._pidfd = os.pidfd_open(self.pid)
+        self._wake_fd = launched.wake_fd
+        self._wake_is_pidfd = launched.wake_is_pidfd
         self.registry = registry
-        if registry is not None:
-            registry.add(self.pid)
 
     def fileno(self) -> int:
-        return self._pidfd
+        return self._wake_fd
 
     def poll(self) -> int | None:
         return self.popen.poll()
 
     def kill(self) -> None:
+        """SIGKILL the worker (it starts nothing of its own), reap it and close up."""
         if self.popen.poll() is None:
+            # Not reaped, so the pid is still the worker's: a direct signal is exact.
             try:
-                os.killpg(self.pid, signal.SIGKILL)
+                if self._wake_is_pidfd and self._wake_fd >= 0:
+                    signal.pidfd_send_signal(self._wake_fd, signal.SIGKILL)
+                else:
+                    os.kill(self.pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
-        self.popen.wait()
+        try:
+            self.popen.wait(KILL_WAIT_S)
+        except subprocess.TimeoutExpired:
+            log.warning(
+                "coupling worker %d did not die within %g s of SIGKILL", self.pid, KILL_WAIT_S
+            )
+            self.close(forget=False)
+            return
         self.close()
 
-    def close(self) -> None:
-        if self._pidfd >= 0:
-            os.close(self._pidfd)
-            self._pidfd = -1
+    def close(self, *, forget: bool = True) -> None:
+        if self._wake_fd >= 0:
+            with contextlib.suppress(OSError):
+                os.close(self._wake_fd)
+            self._wake_fd = -1
         self.conn.close()
-        if self.registry is not None:
-            self.registry.remove(self.pid)
+        if self.registry is not None and forget:
+            with contextlib.suppress(OSError):
+                self.registry.remove_token(self.record.token or "")
             self.registry = None
 
     def log_size(self) -> int:
@@ -114,6 +167,42 @@ class WorkerProcess:
 
     def log_tail(self, lines: int = 30) -> str:
         return read_tail(self.log_path, lines)
+
+
+_T = TypeVar("_T")
+_lasting: tuple[int, queue.SimpleQueue[Any]] | None = None
+_lasting_lock = threading.Lock()
+
+
+def _call_in_lasting_thread(fn: Callable[[], _T]) -> _T:
+    """Run ``fn`` on a thread that lives until the process exits; return its result.
+
+    The main thread is one already; any other caller hands ``fn`` to a daemon thread
+    started once per process (again after a ``fork``).
+    """
+    global _lasting
+    if threading.current_thread() is threading.main_thread():
+        return fn()
+    with _lasting_lock:
+        if _lasting is None or _lasting[0] != os.getpid():
+            requests: queue.SimpleQueue[Any] = queue.SimpleQueue()
+            threading.Thread(
+                target=_serve_calls, args=(requests,), name="gymprecice-launcher", daemon=True
+            ).start()
+            _lasting = (os.getpid(), requests)
+        requests = _lasting[1]
+    future: Future[_T] = Future()
+    requests.put((fn, future))
+    return future.result()
+
+
+def _serve_calls(requests: queue.SimpleQueue[Any]) -> None:
+    while True:
+        fn, future = requests.get()
+        try:
+            future.set_result(fn())
+        except BaseException as exc:
+            future.set_exception(exc)
 
 
 class CouplingSession:
@@ -136,6 +225,7 @@ class CouplingSession:
         self.kill_grace = kill_grace
         self.health_check = health_check
         self.closed = False
+        self._killing = False
 
     # -- requests ---------------------------------------------------------------------------
     def initialize(self, request: dict[str, Any], timeout: float) -> CouplingState:
@@ -161,13 +251,23 @@ class CouplingSession:
         self.kill()
 
     def kill(self) -> None:
-        """Kill the worker and every solver group. Idempotent."""
+        """Kill the worker and every solver group. Idempotent.
+
+        A call made while another one waits out the kill grace (a signal handler ending
+        the episode) does not return early: it finishes the job at once with SIGKILL, so
+        a process that dies of that signal leaves nothing behind.
+        """
         if self.closed:
             return
-        self.closed = True
-        self.worker.kill()
-        for solver in self.solvers:
-            solver.terminate(self.kill_grace)
+        nested, self._killing = self._killing, True
+        try:
+            self.worker.kill()
+        finally:
+            try:
+                for solver in list(self.solvers):
+                    solver.terminate(0.0 if nested else self.kill_grace)
+            finally:
+                self.closed = True
 
     # -- the watchdog ---------------------------------------------------------------------
     @staticmethod
@@ -195,7 +295,9 @@ class CouplingSession:
                     reply = self.worker.conn.recv()
                 except (EOFError, OSError):
                     self._fail_worker_gone(op)
-                return self._unpack(reply, op)
+                payload = self._unpack(reply, op)
+                self._check_solvers_lived(payload, op)
+                return payload
             if self.worker in ready:
                 self._fail_worker_gone(op)
             now = time.monotonic()
@@ -236,6 +338,37 @@ class CouplingSession:
                     f"did not finish '{op}' within {timeout:g} s",
                     op,
                 )
+
+    def _check_solvers_lived(self, payload: dict[str, Any], op: str) -> None:
+        """Refuse a reply that a dead solver may not have computed.
+
+        preCICE does not always block when a partner dies: it may finish a window or two
+        with the data it had (measured with 3.4.1), so a reply can arrive after a solver
+        was killed, carrying data no live solver computed for this step. Every solver
+        must therefore still be running when the reply is taken; a solver that exited
+        (or is exiting: /proc shows it before its sockets close) fails the step. Only a
+        clean exit (status 0) at the end of the coupling is a normal ending.
+        """
+        if op == "finalize":
+            return
+        for solver in self.solvers:
+            if not solver.exited():
+                continue
+            ending = not payload.get("ongoing", True)
+            status = solver.poll()
+            if status is None:
+                solver.wait(EXIT_GRACE_S)  # exiting: its status comes in a moment
+                status = solver.poll()
+            if ending and status == 0:
+                continue
+            what = (
+                describe_returncode(status)
+                if status not in (0, None)
+                else "exited while the coupling was still running"
+            )
+            self._fail(
+                SolverCrashedError, solver, what + "; the data of this step is discarded", op
+            )
 
     def _log_sizes(self) -> list[int]:
         """Sizes of every log of the episode: growth in any of them counts as progress."""

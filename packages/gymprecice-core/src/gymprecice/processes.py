@@ -1,15 +1,18 @@
-"""Supervision of solver processes: process groups, logs, exit notification, clean kills.
+"""Starting solver processes and ending them: process groups, logs, exit notification.
 
 Plugins only describe how a solver starts (:class:`~gymprecice.solver.LaunchSpec`); core
 starts it here. Every solver runs in its own session and process group, so one signal to
 the group reaches everything the solver started (``mpirun``, its ranks, a shell script's
-background jobs) and nothing else. The group ids are recorded on disk
-(:class:`PidRegistry`) so that an outer supervisor can still kill them after the env
-process itself died (:func:`kill_recorded_groups`).
+background jobs) and nothing else. Each group is recorded on disk before it exists
+(:mod:`gymprecice.pidregistry`), so an outer supervisor can still kill it after the env
+process itself died, and every kill proves the identity of what it signals first.
 
 An env waits on the coupling worker's pipe and on its solvers at the same time with
 :func:`multiprocessing.connection.wait`; :meth:`SolverProcess.fileno` makes that possible
 by handing out a pidfd, which becomes readable when the solver exits.
+
+A solver's leader is never reaped before its group is known to be empty: until then its
+pid, and so the group's number, cannot be reused, and no signal can reach a stranger.
 
 Solver scripts often call ``mpirun``. That breaks when the Python process initialised an
 MPI singleton (``from mpi4py import MPI``) before its environment reached the solver:
@@ -21,7 +24,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import logging
 import os
 import secrets
@@ -31,34 +33,40 @@ import signal
 import subprocess
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from gymprecice.errors import CaseError, SolverCrashedError, SolverTimeoutError
+from gymprecice.pidregistry import (
+    KILL_WAIT_S,
+    PROCESS_TOKEN_VARIABLE,
+    GroupRecord,
+    PidRegistry,
+    kill_group_records,
+    kill_recorded_groups,
+    live_group_members,
+    proc_stat,
+)
 from gymprecice.solver import LaunchSpec
 
 __all__ = [
     "PROCESS_TOKEN_VARIABLE",
     "GroupRecord",
+    "Launched",
     "PidRegistry",
     "SolverProcess",
     "clean_mpi_environment",
     "describe_returncode",
     "kill_recorded_groups",
+    "launch",
     "read_tail",
     "run_to_completion",
 ]
 
 log = logging.getLogger(__name__)
 
-#: Environment variable that carries a random token into every process a solver starts.
-#: :func:`kill_recorded_groups` uses it to recognise a group whose leader already exited.
-PROCESS_TOKEN_VARIABLE = "GYMPRECICE_PROCESS_TOKEN"
-
-# How long to wait for a group to vanish after SIGKILL before giving up on it (a process
-# in uninterruptible sleep cannot die until its I/O returns).
-_KILL_WAIT_S = 2.0
+_KILL_WAIT_S = KILL_WAIT_S
 
 # --------------------------------------------------------------------------------------
 # MPI environment cleaning
@@ -141,114 +149,6 @@ def clean_mpi_environment(environ: Mapping[str, str]) -> dict[str, str]:
     return {k: v for k, v in environ.items() if not _is_mpi_runtime_variable(k)}
 
 
-# --------------------------------------------------------------------------------------
-# /proc helpers (Linux); every caller copes with their absence
-# --------------------------------------------------------------------------------------
-
-_PROC = Path("/proc")
-
-
-@dataclass(frozen=True)
-class _ProcStat:
-    pid: int
-    state: str
-    ppid: int
-    pgrp: int
-    starttime: int
-
-
-def _proc_stat(pid: int) -> _ProcStat | None:
-    try:
-        data = (_PROC / str(pid) / "stat").read_bytes()
-    except OSError:
-        return None
-    # The command name (field 2) may contain spaces and parentheses: split after the last ')'.
-    rest = data[data.rfind(b")") + 2 :].split()
-    try:
-        return _ProcStat(pid, rest[0].decode(), int(rest[1]), int(rest[2]), int(rest[19]))
-    except (IndexError, ValueError):
-        return None
-
-
-def _have_proc() -> bool:
-    return (_PROC / "self" / "stat").exists()
-
-
-def _live_group_members(pgid: int) -> list[int] | None:
-    """Pids of the group's processes that are not zombies; ``None`` without /proc.
-
-    Zombies are excluded: an orphaned member that died waits for init to reap it, which
-    may take seconds in a container, yet it holds nothing and cannot be killed again.
-    """
-    if not _have_proc():
-        return None
-    members = []
-    for entry in os.scandir(_PROC):
-        if not entry.name.isdigit():
-            continue
-        st = _proc_stat(int(entry.name))
-        if st is not None and st.pgrp == pgid and st.state not in ("Z", "X", "x"):
-            members.append(st.pid)
-    return members
-
-
-def _group_alive(pgid: int) -> bool:
-    """Whether the process group still has a member that is not a zombie."""
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        pass  # exists, but some member is not ours; fall through to /proc
-    members = _live_group_members(pgid)
-    return True if members is None else bool(members)
-
-
-def _signal_group(pgid: int, sig: signal.Signals) -> None:
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(pgid, sig)
-
-
-def _wait_until(done: Callable[[], bool], timeout: float) -> bool:
-    """Poll ``done`` with a short back-off until it is true or ``timeout`` passes."""
-    deadline = time.monotonic() + timeout
-    delay = 0.002
-    while not done():
-        remaining = deadline - time.monotonic()
-        if remaining <= 0:
-            return done()
-        time.sleep(min(delay, remaining))
-        delay = min(delay * 2, 0.05)
-    return True
-
-
-def _kill_groups(
-    pgids: list[int], grace: float, reap: Callable[[], object] | None = None
-) -> list[int]:
-    """SIGTERM (+SIGCONT) the groups, SIGKILL what is left after ``grace``.
-
-    ``reap`` is called while waiting so that our own child does not linger as a zombie
-    member (which keeps a group "alive" where /proc cannot tell zombies apart).
-    Returns the groups that are still alive at the end (normally none).
-    """
-
-    def all_gone() -> bool:
-        if reap is not None:
-            reap()
-        return not any(_group_alive(g) for g in pgids)
-
-    for pgid in pgids:
-        _signal_group(pgid, signal.SIGTERM)
-        # A stopped process keeps SIGTERM pending until it is continued.
-        _signal_group(pgid, signal.SIGCONT)
-    if _wait_until(all_gone, grace):
-        return []
-    for pgid in pgids:
-        _signal_group(pgid, signal.SIGKILL)
-    _wait_until(all_gone, _KILL_WAIT_S)
-    return [g for g in pgids if _group_alive(g)]
-
-
 def describe_returncode(returncode: int | None) -> str:
     """``exited with status 3`` / ``was killed by SIGKILL`` / ``is still running``."""
     if returncode is None:
@@ -263,156 +163,7 @@ def describe_returncode(returncode: int | None) -> str:
 
 
 # --------------------------------------------------------------------------------------
-# Pid registry
-# --------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class GroupRecord:
-    """One recorded process group: its id, its leader's start time and the launch token.
-
-    ``starttime`` (clock ticks since boot, from /proc) and ``token`` tell a live group
-    started by gymprecice from an unrelated group that later got the same number.
-    """
-
-    pgid: int
-    starttime: int | None = None
-    token: str | None = None
-
-    def to_line(self) -> str:
-        start = "-" if self.starttime is None else str(self.starttime)
-        return f"{self.pgid} {start} {self.token or '-'}\n"
-
-    @classmethod
-    def from_line(cls, line: str) -> GroupRecord | None:
-        parts = line.split()
-        if not parts:
-            return None
-        try:
-            pgid = int(parts[0])
-            start = int(parts[1]) if len(parts) > 1 and parts[1] != "-" else None
-        except ValueError:
-            return None
-        token = parts[2] if len(parts) > 2 and parts[2] != "-" else None
-        return cls(pgid, start, token)
-
-
-class PidRegistry:
-    """The process groups an env started, in ``<env_dir>/.gymprecice/pids``.
-
-    One group per line: ``pgid starttime token`` (the first field alone is the pgid, so
-    ``cut -d' ' -f1`` gives a plain list). Updates take an ``flock`` on a lock file and
-    replace the file atomically, so a reader never sees half a file and concurrent
-    writers (threads or processes) never lose an entry.
-    """
-
-    def __init__(self, env_dir: Path | str) -> None:
-        self.env_dir = Path(env_dir)
-        self.path = self.env_dir / ".gymprecice" / "pids"
-
-    def __repr__(self) -> str:
-        return f"PidRegistry({str(self.env_dir)!r})"
-
-    def entries(self) -> list[GroupRecord]:
-        """The recorded groups (empty when nothing was recorded)."""
-        try:
-            text = self.path.read_text()
-        except FileNotFoundError:
-            return []
-        return [r for r in map(GroupRecord.from_line, text.splitlines()) if r is not None]
-
-    def pgids(self) -> list[int]:
-        """The recorded process group ids."""
-        return [r.pgid for r in self.entries()]
-
-    def add(self, pgid: int, *, starttime: int | None = None, token: str | None = None) -> None:
-        """Record a group (replacing an older record of the same pgid)."""
-        record = GroupRecord(pgid, starttime, token)
-        self._update(lambda rs: [r for r in rs if r.pgid != pgid] + [record])
-
-    def remove(self, *pgids: int) -> None:
-        """Forget groups; unknown ones are ignored."""
-        if not self.path.exists():
-            return  # nothing recorded; do not recreate a run directory being deleted
-        drop = set(pgids)
-        self._update(lambda rs: [r for r in rs if r.pgid not in drop])
-
-    def clear(self) -> None:
-        """Forget every group."""
-        if not self.path.exists():
-            return
-        self._update(lambda rs: [])
-
-    @contextlib.contextmanager
-    def _locked(self) -> Iterator[None]:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        with open(self.path.with_name("pids.lock"), "a") as lock:
-            fcntl.flock(lock, fcntl.LOCK_EX)
-            try:
-                yield
-            finally:
-                fcntl.flock(lock, fcntl.LOCK_UN)
-
-    def _update(self, change: Callable[[list[GroupRecord]], list[GroupRecord]]) -> None:
-        with self._locked():
-            records = change(self.entries())
-            tmp = self.path.with_name(f"pids.{os.getpid()}.{threading.get_ident()}.tmp")
-            tmp.write_text("".join(r.to_line() for r in records))
-            os.replace(tmp, self.path)
-
-
-def _record_is_ours(record: GroupRecord) -> bool:
-    """Whether a live group with the recorded number is the one gymprecice started.
-
-    A pid number cannot be reused while any process still has it as its group id, so a
-    live leader with a different start time means the recorded group is gone and the
-    number now belongs to someone else. A group whose leader already exited is
-    recognised by the launch token in its members' environment.
-    """
-    if not _have_proc():
-        return True
-    leader = _proc_stat(record.pgid)
-    if leader is not None and leader.pgrp == record.pgid:
-        return record.starttime is None or leader.starttime == record.starttime
-    if record.token is None:
-        return leader is None
-    needle = f"{PROCESS_TOKEN_VARIABLE}={record.token}".encode()
-    readable = False
-    for pid in _live_group_members(record.pgid) or []:
-        try:
-            environ = (_PROC / str(pid) / "environ").read_bytes()
-        except OSError:
-            continue
-        readable = True
-        if needle in environ.split(b"\0"):
-            return True
-    # Nothing readable: trust the record rather than leave a solver running.
-    return not readable
-
-
-def kill_recorded_groups(env_dir: Path | str, grace: float = 1.0) -> list[int]:
-    """Kill every live process group recorded for ``env_dir``; return the pgids signalled.
-
-    Meant for an outer supervisor (the vector env) after an env process died or hung:
-    each recorded group that is still alive and still the one the env started gets
-    SIGTERM and SIGCONT, then SIGKILL after ``grace`` seconds. Stale records (group gone,
-    number reused) are dropped without a signal. Records of groups that survive even
-    SIGKILL stay in the registry so a later call can retry.
-    """
-    registry = PidRegistry(env_dir)
-    records = registry.entries()
-    if not records:
-        return []
-    live = [r.pgid for r in records if _group_alive(r.pgid) and _record_is_ours(r)]
-    survivors = _kill_groups(live, grace) if live else []
-    if survivors:
-        log.warning("process groups %s of %s survived SIGKILL", survivors, env_dir)
-    registry.remove(*(r.pgid for r in records if r.pgid not in survivors))
-    return live
-
-
-# --------------------------------------------------------------------------------------
-# Solver processes
+# Launching
 # --------------------------------------------------------------------------------------
 
 _pidfd_checked: bool | None = None
@@ -441,6 +192,93 @@ def _open_log(path: Path, append: bool) -> int:
     return os.open(path, flags, 0o644)
 
 
+@dataclass
+class Launched:
+    """A child started by :func:`launch`: how to wait for it and how to prove it is ours."""
+
+    popen: subprocess.Popen[bytes]
+    token: str
+    starttime: int | None
+    wake_fd: int
+    wake_is_pidfd: bool
+
+    @property
+    def record(self) -> GroupRecord:
+        return GroupRecord(self.popen.pid, self.starttime, self.token)
+
+
+def launch(
+    argv: Sequence[str],
+    *,
+    cwd: Path | str | None,
+    env: Mapping[str, str],
+    stdout: int,
+    pass_fds: Sequence[int] = (),
+    registry: PidRegistry | None = None,
+) -> Launched:
+    """Start ``argv`` in a new session and process group, recorded before it exists.
+
+    The child's environment gets a fresh launch token (:data:`PROCESS_TOKEN_VARIABLE`).
+    The token is written to ``registry`` before ``fork``, and the group's number and start
+    time right after, so an env killed at any instant leaves a record a supervisor can act
+    on. The wake descriptor is a pidfd, or (kernels without pidfds) the read end of a pipe
+    that only the child's processes hold. ``OSError`` from ``Popen`` propagates.
+    """
+    token = secrets.token_hex(8)
+    child_env = {**env, PROCESS_TOKEN_VARIABLE: token}
+    use_pidfd = _pidfd_available()
+    pipe_r = pipe_w = -1
+    if not use_pidfd:
+        pipe_r, pipe_w = os.pipe()
+    if registry is not None:
+        registry.add_pending(token)
+    try:
+        popen = subprocess.Popen(
+            list(argv),
+            cwd=cwd,
+            env=child_env,
+            stdin=subprocess.DEVNULL,
+            stdout=stdout,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            close_fds=True,
+            pass_fds=(*pass_fds, *(() if use_pidfd else (pipe_w,))),
+        )
+    except BaseException:
+        if pipe_r >= 0:
+            os.close(pipe_r)
+        if registry is not None:
+            with contextlib.suppress(OSError):
+                registry.remove_token(token)
+        raise
+    finally:
+        if pipe_w >= 0:
+            os.close(pipe_w)
+    try:
+        # The child is not reaped yet, so its pid cannot have been reused.
+        wake_fd = os.pidfd_open(popen.pid) if use_pidfd else pipe_r
+        launched = Launched(popen, token, _starttime(popen.pid), wake_fd, use_pidfd)
+        if registry is not None:
+            registry.add_record(launched.record)
+    except BaseException:
+        # Still unreaped: the group number is ours, killpg cannot hit anyone else.
+        with contextlib.suppress(OSError):
+            os.killpg(popen.pid, signal.SIGKILL)
+        popen.wait()
+        raise
+    return launched
+
+
+def _starttime(pid: int) -> int | None:
+    st = proc_stat(pid)
+    return None if st is None else st.starttime
+
+
+# --------------------------------------------------------------------------------------
+# Solver processes
+# --------------------------------------------------------------------------------------
+
+
 class SolverProcess:
     """One running solver: its own process group, its log file and an exit notifier.
 
@@ -451,8 +289,9 @@ class SolverProcess:
     ``fileno()`` is a pidfd where the kernel has them (Linux >= 5.3). Elsewhere it is the
     read end of a pipe whose write end only the solver's processes hold: it becomes
     readable once the last of them exits (or closes it), which may be later than the
-    direct child's exit when the solver leaves background processes. No thread is needed
-    either way; :meth:`poll` stays the authority on the child's exit.
+    direct child's exit when the solver leaves background processes. :meth:`poll` stays
+    the authority on the child's exit; it reads the status without reaping the child
+    (``waitid(WNOWAIT)``), which only :meth:`terminate` does, after the group is empty.
     """
 
     def __init__(
@@ -466,6 +305,8 @@ class SolverProcess:
         wake_is_pidfd: bool = True,
         env_index: int = 0,
         registry: PidRegistry | None = None,
+        token: str | None = None,
+        starttime: int | None = None,
     ) -> None:
         # Use SolverProcess.start(); this only wires up an already started child.
         self.name = name
@@ -478,7 +319,13 @@ class SolverProcess:
         self._wake_fd: int | None = wake_fd
         self._wake_is_pidfd = wake_is_pidfd
         self._registry = registry
-        self._lock = threading.Lock()
+        self._record = GroupRecord(
+            popen.pid, _starttime(popen.pid) if starttime is None else starttime, token
+        )
+        self._status: int | None = None
+        # Re-entrant: a signal handler may end the episode while terminate() waits.
+        self._lock = threading.RLock()
+        self._terminating = False
         self._closed = False
 
     # -- starting ----------------------------------------------------------------------
@@ -499,7 +346,7 @@ class SolverProcess:
         is truncated first unless ``append`` (keep earlier episodes' output). The
         environment is ``os.environ`` without MPI runtime variables, plus ``spec.env``,
         plus :data:`PROCESS_TOKEN_VARIABLE`. With a ``registry`` the group is recorded
-        there until :meth:`terminate` has killed it.
+        there (before it starts) until :meth:`terminate` has killed it.
 
         Raises :class:`~gymprecice.errors.CaseError` when the directory or the program is
         missing or the program cannot be executed.
@@ -516,58 +363,27 @@ class SolverProcess:
             )
         log_path = cwd / spec.log_name
         log_path.parent.mkdir(parents=True, exist_ok=True)
-        token = secrets.token_hex(8)
         env = clean_mpi_environment(os.environ)
         env.update({str(k): str(v) for k, v in spec.env.items()})
-        env[PROCESS_TOKEN_VARIABLE] = token
-
-        use_pidfd = _pidfd_available()
-        pipe_r = pipe_w = -1
-        if not use_pidfd:
-            pipe_r, pipe_w = os.pipe()
         log_fd = _open_log(log_path, append)
         try:
-            popen = subprocess.Popen(
-                argv,
-                cwd=cwd,
-                env=env,
-                stdin=subprocess.DEVNULL,
-                stdout=log_fd,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-                close_fds=True,
-                pass_fds=() if use_pidfd else (pipe_w,),
-            )
+            launched = launch(argv, cwd=cwd, env=env, stdout=log_fd, registry=registry)
         except OSError as exc:
-            if pipe_r >= 0:
-                os.close(pipe_r)
             raise _launch_error(exc, argv, cwd, where) from exc
         finally:
             os.close(log_fd)
-            if pipe_w >= 0:
-                os.close(pipe_w)
-
-        # The child is not reaped yet, so its pid cannot have been reused.
-        wake_fd = os.pidfd_open(popen.pid) if use_pidfd else pipe_r
         proc = cls(
             name,
-            popen,
+            launched.popen,
             argv=argv,
             log_path=log_path,
-            wake_fd=wake_fd,
-            wake_is_pidfd=use_pidfd,
+            wake_fd=launched.wake_fd,
+            wake_is_pidfd=launched.wake_is_pidfd,
             env_index=env_index,
             registry=registry,
+            token=launched.token,
+            starttime=launched.starttime,
         )
-        if registry is not None:
-            try:
-                st = _proc_stat(popen.pid)
-                registry.add(
-                    proc.pgid, starttime=st.starttime if st is not None else None, token=token
-                )
-            except BaseException:
-                proc.terminate(grace=0.0)
-                raise
         log.debug("started %s: pid %d, %s, log %s", where, proc.pid, shlex.join(argv), log_path)
         return proc
 
@@ -580,31 +396,69 @@ class SolverProcess:
         )
 
     @property
+    def record(self) -> GroupRecord:
+        """What proves this group is ours: pgid, leader start time, launch token."""
+        return self._record
+
+    @property
     def returncode(self) -> int | None:
         """Exit status of the direct child (negative: killed by that signal); ``None`` while it runs."""
         return self.poll()
 
+    def _peek(self) -> int | None:
+        """The child's exit status, read without reaping it."""
+        if self._popen.returncode is not None:
+            return self._popen.returncode
+        if self._status is not None:
+            return self._status
+        try:
+            info = os.waitid(os.P_PID, self.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+        except ChildProcessError:
+            return self._popen.poll()
+        if info is None:
+            return None
+        code = info.si_status if info.si_code == os.CLD_EXITED else -info.si_status
+        self._status = code
+        return code
+
     def poll(self) -> int | None:
-        """Reap the child if it exited and return :attr:`returncode`.
+        """The child's exit status if it exited (see :attr:`returncode`); never reaps it.
 
         Once ``fileno()`` has become readable this gives the exit status: with the pipe
-        fallback the pipe closes a moment before the exiting child can be reaped, so a
-        short bounded wait bridges that gap.
+        fallback the pipe closes a moment before the exiting child is a zombie, so a short
+        bounded wait bridges that gap.
         """
-        returncode = self._popen.poll()
+        returncode = self._peek()
         if returncode is None and not self._wake_is_pidfd and self._wake_fd is not None:
             readable, _, _ = select.select([self._wake_fd], [], [], 0)
             if readable:
-                with contextlib.suppress(subprocess.TimeoutExpired):
-                    returncode = self._popen.wait(0.1)
+                deadline = time.monotonic() + 0.1
+                while returncode is None and time.monotonic() < deadline:
+                    time.sleep(0.002)
+                    returncode = self._peek()
         return returncode
+
+    def exited(self) -> bool:
+        """Whether the child exited or has begun to exit (killed, its files closing)."""
+        if self.poll() is not None:
+            return True
+        st = proc_stat(self.pid)
+        return st is None or st.dead
 
     def wait(self, timeout: float | None = None) -> int | None:
         """Wait for the child to exit; return its status, or ``None`` on timeout."""
-        try:
-            return self._popen.wait(timeout)
-        except subprocess.TimeoutExpired:
-            return None
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            returncode = self.poll()
+            if returncode is not None:
+                return returncode
+            left = 1.0 if deadline is None else deadline - time.monotonic()
+            if left <= 0:
+                return None
+            if self._wake_is_pidfd and self._wake_fd is not None:
+                select.select([self._wake_fd], [], [], min(left, 1.0))
+            else:
+                time.sleep(min(left, 0.01))
 
     def describe_status(self) -> str:
         """``exited with status 1`` / ``was killed by SIGSEGV`` / ``is still running``."""
@@ -647,19 +501,18 @@ class SolverProcess:
     def terminate(self, grace: float = 2.0) -> int | None:
         """Kill the whole process group, reap the child and close the descriptors.
 
-        SIGTERM goes to the group, followed by SIGCONT so that stopped members can act on
-        it; members still alive after ``grace`` seconds get SIGKILL. Calling it again
-        does nothing. Returns the child's exit status.
+        SIGTERM goes to the group's proven members, followed by SIGCONT so that stopped
+        members can act on it; members still alive after ``grace`` seconds get SIGKILL.
+        The child is reaped only once its group is empty. A call made while another is
+        waiting out the grace (a signal handler ending the episode) escalates to SIGKILL
+        at once. Calling it after it finished does nothing. Returns the exit status.
         """
         with self._lock:
             if self._closed:
                 return self.returncode
+            nested, self._terminating = self._terminating, True
             try:
-                survivors = (
-                    _kill_groups([self.pgid], grace, reap=self._popen.poll)
-                    if _group_alive(self.pgid)
-                    else []
-                )
+                survivors = self._kill_group(0.0 if nested else grace)
                 if survivors:
                     log.warning(
                         "process group %d of solver %r (env %d) survived SIGKILL",
@@ -673,7 +526,7 @@ class SolverProcess:
                     log.warning("solver %r (pid %d) could not be reaped", self.name, self.pid)
                 if self._registry is not None and not survivors:
                     try:
-                        self._registry.remove(self.pgid)
+                        self._registry.remove_records(lambda r: r.pgid == self.pgid)
                     except OSError as exc:  # the env dir may already be gone
                         log.debug("could not update %s: %s", self._registry.path, exc)
             finally:
@@ -682,6 +535,25 @@ class SolverProcess:
             return self.returncode
 
     close = terminate
+
+    def _kill_group(self, grace: float) -> bool:
+        """Kill the group; True when some member survived SIGKILL."""
+        if self._popen.returncode is not None:
+            return False  # reaped: the number may belong to someone else now
+        if live_group_members(self.pgid) is None:
+            return self._killpg_without_proc(grace)
+        _, survivors = kill_group_records([self._record], grace)
+        return bool(survivors)
+
+    def _killpg_without_proc(self, grace: float) -> bool:
+        """No /proc: signal the group while the unreaped leader pins its number."""
+        for sig in (signal.SIGTERM, signal.SIGCONT):
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(self.pgid, sig)
+        if self.wait(grace) is None:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(self.pgid, signal.SIGKILL)
+        return self.wait(_KILL_WAIT_S) is None
 
     def _close_fd(self) -> None:
         if self._wake_fd is not None:
