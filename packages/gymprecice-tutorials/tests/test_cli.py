@@ -13,7 +13,7 @@ import pytest
 
 from gymprecice.cli import build_parser, main
 from gymprecice_tutorials import manifest, train
-from gymprecice_tutorials.plugin import ENVIRONMENTS, find_environment
+from gymprecice_tutorials.environments import ENVIRONMENTS, find_environment
 
 COMMANDS = ("train", "evaluate", "baseline", "open-loop", "plot")
 

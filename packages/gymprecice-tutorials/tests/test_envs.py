@@ -31,7 +31,7 @@ from gymprecice_tutorials.jet_cylinder.environment import (
     materialise_case,
 )
 from gymprecice_tutorials.jet_cylinder.geometry import patch_geometry
-from gymprecice_tutorials.plugin import ENVIRONMENTS
+from gymprecice_tutorials.environments import ENVIRONMENTS
 from gymprecice_tutorials.rotating_cylinder.environment import RotatingCylinderEnv
 
 CYLINDER_IDS = [

@@ -77,8 +77,8 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     resumed = _ok(_cli(root, *TRAIN, "--timesteps", "48", "--no-progress-bar"))
     rollouts = {}
     for command, extra in (
-        ("evaluate", ["--model", "train"]),
         ("baseline", []),
+        ("evaluate", ["--model", "train", "--episodes", "2", "--baseline", "baseline"]),
         ("open-loop", ["--amplitude", "0.5", "--frequency", "3"]),
     ):
         out = _ok(
@@ -107,7 +107,7 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
 
 def _monitor_rows(path: Path) -> list[dict[str, str]]:
     lines = path.read_text().splitlines()
-    assert lines[0].startswith("#{") and lines[1] == "r,l,t", lines[:2]
+    assert lines[0].startswith("#{") and lines[1] == "r,l,t,mean_Cd,mean_Cl,action_rms", lines[:2]
     return list(csv.DictReader(lines[1:]))
 
 
@@ -208,6 +208,8 @@ def test_evaluate_runs_the_trained_policy_deterministically(recorded):
     assert manifest["settings"]["deterministic"] is True
     assert Path(manifest["settings"]["model"]) == (root / "train" / "model.zip").resolve()
     rows = _history(root / "evaluate" / "history.csv")
+    assert len(rows) == 20  # two episodes of 10 actions
+    rows = [r for r in rows if r["episode"] == "0"]
     actions = np.array([float(r["action_0"]) for r in rows])
     assert len(rows) == 10 and np.all(np.abs(actions) <= MAX_FLOW_RATE * (1 + 1e-6))
     # rerunning gives the same actions: the policy's mean, not samples
@@ -309,7 +311,211 @@ def test_ctrl_c_saves_the_policy_and_the_same_command_resumes(tmp_path):
     finally:
         proc.kill()
     assert proc.returncode == 130, out + err
-    assert "interrupted after" in err and "run the same command again to resume" in err
+    assert "interrupted (SIGINT) after" in err and "run the same command again to resume" in err
     assert (tmp_path / "train" / "model.zip").is_file()
     saved = sorted((tmp_path / "train" / "checkpoints").glob("ppo_*_steps.zip"))
     assert saved and int(saved[-1].name.split("_")[1]) > 0
+
+
+# -- what a run records (issue: a training command a researcher trusts) ---------------------
+
+
+def test_every_segment_is_recorded_with_source_and_model_checksum(recorded):
+    train: Path = recorded["root"] / "train"  # type: ignore[operator]
+    manifest = json.loads((train / "manifest.json").read_text())
+    first, resumed = manifest["segments"]
+    assert first["result"]["timesteps"] == 32 and first["result"]["resumed_from"] is None
+    assert resumed["result"]["timesteps"] == 48
+    assert resumed["result"]["resumed_from"].endswith("ppo_32_steps.zip")
+    assert resumed["argv"][-3:] == ["--timesteps", "48", "--no-progress-bar"]
+    used = manifest["settings"]["hyperparams"]
+    assert (used["algo"], used["n_steps"], used["batch_size"], used["net"]) == (
+        "ppo",
+        8,
+        8,
+        [16, 16],
+    )
+    assert json.loads((train / "hyperparams.json").read_text())["n_steps"] == 8
+    digest = hashlib.sha256((train / "model.zip").read_bytes()).hexdigest()
+    assert manifest["result"]["model_sha256"] == digest
+    assert manifest["result"]["device"] == "cpu"
+    assert set(manifest["source"]) == {"git", "identified_by"}
+    assert manifest["source"]["identified_by"] in ("git", "packages")
+
+
+def test_resume_with_other_hyperparameters_is_refused_naming_the_flag(recorded):
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    before = (root / "train" / "manifest.json").read_text()
+    args = [a if a != "8" else "16" for a in TRAIN]  # --n-steps 16 --batch-size 16
+    proc = _cli(root, *args, "--timesteps", "64")
+    assert proc.returncode == 1
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert "--n-steps is 16 now but 8 in the run being resumed" in lines[0]
+    assert "--batch-size is 16 now but 8" in lines[0] and "--fresh" in lines[0]
+    assert (root / "train" / "manifest.json").read_text() == before
+
+
+def test_monitor_time_axis_keeps_increasing_across_a_resume(recorded):
+    train: Path = recorded["root"] / "train"  # type: ignore[operator]
+    for path in sorted((train / "monitor").glob("*.csv")):
+        rows = _monitor_rows(path)
+        times = [float(r["t"]) for r in rows]
+        assert times == sorted(times), times  # t of resumed episodes continues the first's
+        assert all(math.isfinite(float(r["mean_Cd"])) for r in rows)
+        assert all(float(r["action_rms"]) >= 0 for r in rows)
+
+
+def test_env_metrics_and_progress_csv_are_logged(recorded):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    train: Path = recorded["root"] / "train"  # type: ignore[operator]
+    tags: set[str] = set()
+    for path in sorted((train / "tb").rglob("events.out.tfevents.*")):
+        acc = EventAccumulator(str(path))
+        acc.Reload()
+        tags |= set(acc.Tags()["scalars"])
+    assert {"env/mean_Cd", "env/mean_Cl", "env/action_rms"} <= tags
+    with (train / "progress.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    steps = [int(r["time/total_timesteps"]) for r in rows if r.get("time/total_timesteps")]
+    assert steps[-1] == 48 and 32 in steps  # both segments, merged
+    assert not list(train.glob("progress.*.csv"))
+
+
+def test_evaluate_reports_mean_and_spread_and_change_against_the_baseline(recorded):
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    summary = json.loads((root / "evaluate" / "summary.json").read_text())
+    cds = [e["mean_Cd"] for e in summary["episodes"]]
+    assert len(cds) == 2
+    stats = summary["over_episodes"]["mean_Cd"]
+    assert stats["mean"] == pytest.approx(np.mean(cds)) and stats["n"] == 2
+    assert stats["std"] == pytest.approx(np.std(cds))
+    base = json.loads((root / "baseline" / "summary.json").read_text())
+    ref = base["over_episodes"]["mean_Cd"]["mean"]
+    assert summary["change_percent"]["mean_Cd"] == pytest.approx(
+        100 * (stats["mean"] - ref) / abs(ref)
+    )
+    out = recorded["rollouts"]["evaluate"]  # type: ignore[index]
+    assert "2 episode(s)" in out and "mean Cd" in out and "±" in out
+    assert "against the baseline" in out
+
+
+def test_evaluate_a_training_dir_without_model_uses_its_newest_checkpoint(recorded, tmp_path):
+    shutil.copytree(recorded["root"] / "train" / "checkpoints", tmp_path / "killed" / "checkpoints")  # type: ignore[operator]
+    out = _ok(
+        _cli(
+            tmp_path,
+            "evaluate",
+            "quickstart",
+            "--double",
+            "--episode-time",
+            "0.05",
+            "--model",
+            "killed",
+        )
+    )
+    assert "newest checkpoint" in out and "ppo_48_steps.zip" in out
+    manifest = json.loads(
+        (tmp_path / "runs" / "quickstart" / "evaluate" / "manifest.json").read_text()
+    )
+    assert manifest["settings"]["model"].endswith("ppo_48_steps.zip")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_and_sighup_save_like_ctrl_c(tmp_path, sig):
+    """A cluster's preemption signal: the model and a checkpoint are saved and recorded."""
+    args = [*TRAIN, "--timesteps", "100000", "--no-progress-bar"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gymprecice", *args],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        monitors = tmp_path / "train" / "monitor"
+        deadline = time.monotonic() + 180
+        while time.monotonic() < deadline and proc.poll() is None:
+            if any(len(p.read_text().splitlines()) > 3 for p in monitors.glob("*.csv")):
+                break
+            time.sleep(0.2)
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + sig, out + err
+    name = signal.Signals(sig).name
+    assert f"interrupted ({name})" in err and "run the same command again to resume" in err
+    train = tmp_path / "train"
+    manifest = json.loads((train / "manifest.json").read_text())
+    assert manifest["result"]["interrupted"] == name
+    steps = manifest["result"]["timesteps"]
+    assert steps > 0 and (train / "checkpoints" / f"ppo_{steps}_steps.zip").is_file()
+    assert (
+        manifest["result"]["model_sha256"]
+        == hashlib.sha256((train / "model.zip").read_bytes()).hexdigest()
+    )
+
+
+def test_sac_with_a_hyperparameter_file_normalize_and_evaluation(tmp_path):
+    """--algo sac, --hyperparams (copied), --normalize and --eval-freq on the double; the
+    shipped helper and evaluate load the model with its normalisation."""
+    (tmp_path / "sac.yml").write_text(
+        "gymprecice/Quickstart-v0:\n  learning_starts: 4\n  buffer_size: 200\n  batch_size: 8\n"
+        "  net: [16, 16]\n"
+    )
+    common = ["quickstart", "--double", "--episode-time", "0.1", "--seed", "3"]
+    _ok(
+        _cli(
+            tmp_path,
+            "train",
+            *common,
+            "--algo",
+            "sac",
+            "--hyperparams",
+            "sac.yml",
+            "--normalize",
+            "--timesteps",
+            "16",
+            "--eval-freq",
+            "8",
+            "--n-eval-episodes",
+            "1",
+            "--no-progress-bar",
+            "--out",
+            "sac",
+        )
+    )
+    run = tmp_path / "sac"
+    assert (run / "hyperparams.yaml").read_text() == (tmp_path / "sac.yml").read_text()
+    used = json.loads((run / "hyperparams.json").read_text())
+    assert (used["algo"], used["learning_starts"], used["normalize"]) == ("sac", 4, True)
+    for name in ("model.zip", "model_vecnormalize.pkl", "best_model.zip"):
+        assert (run / name).is_file(), name
+    assert (run / "best_model_vecnormalize.pkl").is_file()
+    assert (run / "checkpoints" / "sac_vecnormalize_16_steps.pkl").is_file()
+    out = _ok(_cli(tmp_path, "evaluate", *common, "--model", "sac/best_model.zip", "--out", "ev"))
+    assert "1 episode(s)" in out
+    manifest = json.loads((tmp_path / "ev" / "manifest.json").read_text())
+    assert manifest["settings"]["normalization"].endswith("best_model_vecnormalize.pkl")
+
+    from stable_baselines3 import SAC
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from gymprecice_tutorials.envs import load_policy
+
+    venv, model = load_policy(
+        run, "quickstart", double=True, episode_time=0.1, run_root=str(tmp_path / "helper")
+    )
+    try:
+        assert isinstance(model, SAC) and isinstance(venv, VecNormalize)
+        assert venv.training is False
+        assert np.allclose(venv.action_space.low, -1) and np.allclose(venv.action_space.high, 1)
+        obs = venv.reset()
+        action, _ = model.predict(obs, deterministic=True)
+        _, _, _, infos = venv.step(action)
+        applied = infos[0]["action"][0]
+        assert applied == pytest.approx(float(action[0][0]) * MAX_FLOW_RATE, rel=1e-4)
+    finally:
+        venv.close()

@@ -5,7 +5,7 @@ an environment writes into one output directory (``--out``, default
 ``runs/<env>/<command>``) its results and a ``manifest.json`` (versions, solver checks,
 case file hashes, seeds, command line), so the directory alone says how it was made::
 
-    gymprecice train jet-cylinder --require-solvers --n-envs 4 --timesteps 100000
+    gymprecice train jet-cylinder --n-envs 4 --timesteps 100000
     gymprecice evaluate jet-cylinder --time 10
     gymprecice baseline jet-cylinder --time 10
     gymprecice open-loop jet-cylinder --amplitude 0.5 --frequency 3
@@ -13,8 +13,9 @@ case file hashes, seeds, command line), so the directory alone says how it was m
         --baseline runs/jet-cylinder/baseline
 
 ``--double`` runs any of them against gymprecice's preCICE test double with a scripted
-fake flow (seconds, no solver needed); ``--require-solvers`` refuses to start unless
-``gymprecice doctor`` finds what the environment needs.
+fake flow (seconds, no solver needed). Without it a command stops at once, in one line,
+when ``gymprecice doctor`` does not find what the environment needs
+(``--require-solvers``: with the doctor's whole report).
 
 This module only builds parsers; the work is imported when a command runs, so listing
 ``gymprecice --help`` never loads torch or matplotlib.
@@ -27,7 +28,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from gymprecice_tutorials.plugin import ENVIRONMENTS
+from gymprecice_tutorials.environments import ENVIRONMENTS
+from gymprecice_tutorials.hyperparams import ALGORITHMS
 
 __all__ = ["add_commands"]
 
@@ -56,36 +58,52 @@ def _positive_float(text: str) -> float:
     return value
 
 
-def _env_options(p: argparse.ArgumentParser, *, horizon: float | None) -> None:
+def _parser(sub: Any, name: str, help: str, description: str) -> argparse.ArgumentParser:
+    """A sub-command whose ``--help`` shows every option's default."""
+    return sub.add_parser(
+        name,
+        help=help,
+        description=description,
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+
+
+def _env_options(p: argparse.ArgumentParser, *, rollout: bool) -> None:
     p.add_argument(
         "env",
         metavar="ENV",
         help=f"environment: {', '.join(ENVIRONMENTS)} (or its gymnasium id)",
     )
-    p.add_argument("--out", type=Path, help="output directory (default: runs/<env>/<command>)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="output directory (None: runs/<env>/<command>)"
+    )
     p.add_argument(
         "--double",
         action="store_true",
         help="run against gymprecice's preCICE test double with a scripted fake flow "
-        "(no preCICE, no OpenFOAM; for trying the pipeline and for tests)",
+        "(no preCICE, no OpenFOAM; the whole pipeline in minutes, and for tests)",
     )
     p.add_argument(
         "--require-solvers",
         action="store_true",
-        help="stop at once, with `gymprecice doctor`'s explanation, unless preCICE and the "
-        "solvers this environment needs are installed",
+        help="print `gymprecice doctor`'s whole report when preCICE or a solver this "
+        "environment needs is missing (without it: one line)",
     )
     p.add_argument("--case", type=Path, help="a case directory of your own instead of the recipe")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="random seed")
+    horizons = ", ".join(
+        f"{e.name} {e.rollout_time:g} s" for e in ENVIRONMENTS.values() if e.rollout_time
+    )
     p.add_argument(
         "--episode-time",
         type=_positive_float,
         default=None,
         metavar="SECONDS",
-        help="simulated seconds per episode of a packaged case"
-        + (f" (default {horizon:g})" if horizon else " (default: the case's)"),
+        help="simulated seconds per episode of a packaged case (None: "
+        + (f"{horizons}; the others the case's" if rollout else "the case's training episode")
+        + ")",
     )
-    p.set_defaults(default_episode_time=horizon)
+    p.set_defaults(rollout=rollout)
     p.add_argument(
         "--env-kwargs",
         type=_json_object,
@@ -97,39 +115,89 @@ def _env_options(p: argparse.ArgumentParser, *, horizon: float | None) -> None:
 
 def add_commands(sub: Any) -> None:
     """Add the tutorials' sub-commands to ``gymprecice``'s argparse sub-parsers."""
-    p = sub.add_parser(
+    _train_parser(sub)
+    _rollout_parsers(sub)
+    _plot_parser(sub)
+
+
+def _train_parser(sub: Any) -> None:
+    p = _parser(
+        sub,
         "train",
-        help="train a PPO controller (Stable-Baselines3) on N parallel environments",
-        description="Train PPO on a tutorial environment. Resumes from the newest "
-        "checkpoint in --out unless --fresh is given.",
+        help="train a controller (Stable-Baselines3 PPO, SAC or TD3) on N parallel environments",
+        description="Train PPO, SAC or TD3 on a tutorial environment. Resumes from the newest "
+        "checkpoint in --out unless --fresh is given; a resume must use the run's "
+        "hyperparameters. Ctrl-C, SIGTERM and SIGHUP save the model and a checkpoint. "
+        "Hyperparameters shown as None take the algorithm's default (ppo: n_steps 80, "
+        "batch_size 80, n_epochs 10, learning_rate 3e-4, gamma 0.99, net 512,512; sac/td3: "
+        "batch_size 256, net 256,256, SB3's others), then --hyperparams, then the flag.",
     )
-    _env_options(p, horizon=None)
+    _env_options(p, rollout=False)
+    p.add_argument("--algo", choices=ALGORITHMS, default="ppo", help="learning algorithm")
+    p.add_argument(
+        "--hyperparams",
+        type=Path,
+        default=None,
+        metavar="FILE.yaml",
+        help="hyperparameters (RL Zoo style: flat, or under the env id); flags override "
+        "them; copied into --out",
+    )
     p.add_argument("--n-envs", type=_positive_int, default=1, help="parallel environments")
     p.add_argument(
-        "--timesteps", type=_positive_int, default=100_000, help="total actions (env steps)"
+        "--timesteps",
+        type=_positive_int,
+        default=100_000,
+        help="total actions (env steps), rounded up to whole rollouts; 100,000 is about "
+        "21 hours on the real jet cylinder on 2 cores",
     )
     p.add_argument(
         "--n-steps",
         type=_positive_int,
-        default=80,
-        help="actions per env per PPO update (default 80: one jet-cylinder episode)",
+        default=None,
+        help="PPO: actions per env per update (80: one jet-cylinder episode)",
     )
     p.add_argument(
         "--batch-size",
         type=_positive_int,
-        default=80,
-        help="PPO mini-batch size (default 80: divides every n_steps x n_envs buffer of 80s)",
+        default=None,
+        help="mini-batch size (PPO: at most n_steps x n_envs)",
     )
-    p.add_argument("--n-epochs", type=_positive_int, default=10)
-    p.add_argument("--learning-rate", type=_positive_float, default=3e-4)
-    p.add_argument("--gamma", type=float, default=0.99)
-    p.add_argument("--net", default="512,512", help="hidden layer sizes of policy and value nets")
+    p.add_argument("--n-epochs", type=_positive_int, default=None, help="PPO: epochs per update")
+    p.add_argument("--learning-rate", type=_positive_float, default=None, help="learning rate")
+    p.add_argument("--gamma", type=float, default=None, help="discount factor")
+    p.add_argument(
+        "--net", default=None, help="hidden layer sizes of policy and value nets, e.g. 64,64"
+    )
+    p.add_argument(
+        "--normalize",
+        action="store_true",
+        help="normalise observations and rewards (VecNormalize); the statistics are "
+        "saved beside every model and used by evaluate",
+    )
     p.add_argument(
         "--checkpoint-every",
         type=_positive_int,
         default=None,
         metavar="STEPS",
-        help="save a checkpoint every this many env steps (default: every 10 updates)",
+        help="save a checkpoint every this many env steps (None: every 10 rollouts)",
+    )
+    p.add_argument(
+        "--keep-checkpoints",
+        type=_positive_int,
+        default=5,
+        metavar="N",
+        help="keep the newest N checkpoints and the best (highest mean return)",
+    )
+    p.add_argument(
+        "--eval-freq",
+        type=_positive_int,
+        default=None,
+        metavar="STEPS",
+        help="every this many env steps, evaluate deterministically on a separate env and "
+        "keep best_model.zip (None: no evaluation during training)",
+    )
+    p.add_argument(
+        "--n-eval-episodes", type=_positive_int, default=2, help="episodes per evaluation"
     )
     p.add_argument("--fresh", action="store_true", help="start over even if --out has checkpoints")
     p.add_argument(
@@ -140,53 +208,96 @@ def add_commands(sub: Any) -> None:
         "subprocesses, or all in this process (debugging)",
     )
     p.add_argument("--no-progress-bar", action="store_true", help="no progress bar")
-    p.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    p.add_argument(
+        "--verbose",
+        type=int,
+        choices=(0, 1, 2),
+        default=0,
+        help="0: progress bar and summary; 1: SB3's table every rollout; 2: SB3's debug output",
+    )
+    p.add_argument("--device", default="cpu", help="torch device (cuda is refused without CUDA)")
     p.set_defaults(func=_run("train"))
 
-    p = sub.add_parser(
+
+def _rollout_parsers(sub: Any) -> None:
+    p = _parser(
+        sub,
         "evaluate",
         help="run a trained policy deterministically over a long horizon",
+        description="Run a trained policy (deterministic: its mean action) for whole "
+        "episodes and write history.csv, coefficients.csv and summary.json (mean and std "
+        "over the episodes; the %% change against --baseline when given).",
     )
-    _env_options(p, horizon=10.0)
+    _env_options(p, rollout=True)
     p.add_argument(
         "--model",
         type=Path,
-        help="model .zip or a training directory (default: runs/<env>/train)",
+        help="model .zip, or a training directory: its model.zip, else its newest "
+        "checkpoint (None: runs/<env>/train)",
     )
-    p.add_argument("--episodes", type=_positive_int, default=1)
+    p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
     p.add_argument("--stochastic", action="store_true", help="sample actions instead")
+    _baseline_option(p)
     p.set_defaults(func=_run("evaluate"))
 
-    p = sub.add_parser("baseline", help="run the uncontrolled flow (zero action)")
-    _env_options(p, horizon=10.0)
-    p.add_argument("--episodes", type=_positive_int, default=1)
+    p = _parser(
+        sub,
+        "baseline",
+        help="run the uncontrolled flow (zero action)",
+        description="Run the uncontrolled flow (zero action: jets closed, cylinder at rest) "
+        "that a controller is judged against; same files as evaluate.",
+    )
+    _env_options(p, rollout=True)
+    p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
     p.set_defaults(func=_run("baseline"))
 
-    p = sub.add_parser("open-loop", help="run a sinusoidal open-loop controller")
-    _env_options(p, horizon=10.0)
+    p = _parser(
+        sub,
+        "open-loop",
+        help="run a sinusoidal open-loop controller",
+        description="Force the flow with a sinusoid on every action dimension, the classic "
+        "open-loop control a learned controller should beat; same files as evaluate.",
+    )
+    _env_options(p, rollout=True)
     p.add_argument(
         "--amplitude",
         type=float,
         default=0.5,
-        help="amplitude as a fraction of the action bound (default 0.5)",
+        help="amplitude as a fraction of the action bound",
     )
     p.add_argument(
         "--frequency",
         type=_positive_float,
         default=None,
-        help="frequency in Hz (default: 3 for the cylinders, 0.5 for the flap)",
+        help="frequency in Hz (None: 3 for the cylinders, 0.5 for the flap)",
     )
     p.add_argument("--phase", type=float, default=0.0, help="phase in radians")
-    p.add_argument("--episodes", type=_positive_int, default=1)
+    p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
+    _baseline_option(p)
     p.set_defaults(func=_run("open-loop"))
 
-    p = sub.add_parser(
+
+def _baseline_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        metavar="RUN",
+        help="a baseline run directory (its summary.json): report the %% change of each mean",
+    )
+
+
+def _plot_parser(sub: Any) -> None:
+    p = _parser(
+        sub,
         "plot",
-        help="draw PNGs: training reward, action history, Cd/Cl against the baseline",
+        help="draw figures: training reward, action history, Cd/Cl against the baseline",
+        description="Draw the return over training, the actions and Cd/Cl of run "
+        "directories (train, evaluate, baseline, open-loop).",
     )
     p.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="output directories")
     p.add_argument("--baseline", type=Path, help="a baseline run to compare Cd/Cl with")
-    p.add_argument("--out", type=Path, help="where PNGs go (default: <first RUN>/plots)")
+    p.add_argument("--out", type=Path, help="where figures go (None: <first RUN>/plots)")
     p.set_defaults(func=_plot)
 
 

@@ -10,7 +10,9 @@ same files, so ``gymprecice plot`` can put any of them side by side:
   actions in the env's own units);
 * ``coefficients.csv``: every solver step's ``episode, time, Cd, Cl`` (the time series of
   the cylinder envs; header only for envs without force coefficients);
-* ``summary.json``: per-episode return and the mean of each metric (``mean_Cd``, ...);
+* ``summary.json``: per-episode return and the mean of each metric (``mean_Cd``, ...),
+  and over the episodes the mean and standard deviation of each (``over_episodes``) and,
+  with ``--baseline RUN``, the % change of each mean against that run's;
 * ``manifest.json``.
 
 The controllers: ``evaluate`` is a trained PPO policy, deterministic by default (the mean
@@ -34,16 +36,20 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice_tutorials.manifest import read_manifest, write_manifest
-from gymprecice_tutorials.plugin import TutorialEnv, find_environment
-from gymprecice_tutorials.train import (
-    build_env_kwargs,
-    default_out,
-    make_env,
-    require_solvers,
-)
+from gymprecice_tutorials.environments import TutorialEnv, find_environment
+from gymprecice_tutorials.envs import find_model, load_model, make_env_checked, vecnormalize_path
+from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
+from gymprecice_tutorials.requirements import require_solvers
+from gymprecice_tutorials.train import build_env_kwargs, default_out
 
-__all__ = ["rollout", "rollout_command", "sine_controller", "zero_controller"]
+__all__ = [
+    "change_against",
+    "over_episodes",
+    "rollout",
+    "rollout_command",
+    "sine_controller",
+    "zero_controller",
+]
 
 #: ``controller(observation, time) -> action`` (in the env's own action space)
 Controller = Callable[[Any, float], Any]
@@ -132,9 +138,39 @@ def rollout(
     summary = {
         "episodes": summaries,
         "mean_return": float(np.mean([s["return"] for s in summaries])),
+        "over_episodes": over_episodes(summaries),
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+def over_episodes(episodes: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:
+    """Mean, standard deviation (``ddof=0``) and count over episodes of each scalar."""
+    keys = [k for k in episodes[0] if k not in ("episode", "steps", "end_time")]
+    out: dict[str, dict[str, float | int]] = {}
+    for key in keys:
+        values = np.array([e[key] for e in episodes if e.get(key) is not None], dtype=float)
+        values = values[np.isfinite(values)]
+        if values.size:
+            out[key] = {
+                "mean": float(values.mean()),
+                "std": float(values.std()),
+                "n": int(values.size),
+            }
+    return out
+
+
+def change_against(summary: dict[str, Any], baseline: dict[str, Any]) -> dict[str, float]:
+    """% change of each mean over episodes against a baseline summary's (same keys)."""
+    ours, theirs = summary["over_episodes"], baseline.get("over_episodes")
+    if theirs is None:  # a summary written before over_episodes existed
+        theirs = over_episodes(baseline["episodes"])
+    out = {}
+    for key, stats in ours.items():
+        ref = theirs.get(key, {}).get("mean")
+        if ref:
+            out[key] = 100.0 * (stats["mean"] - ref) / abs(ref)
+    return out
 
 
 _NOT_METRICS = {"episode", "step", "start", "time", "reward"}
@@ -158,15 +194,44 @@ def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
 
 
 def _model_path(args: argparse.Namespace, env: TutorialEnv) -> Path:
-    path = args.model or default_out(env, "train")
-    if path.is_dir():
-        path = path / "model.zip"
-    if not path.is_file():
+    """The model to evaluate; says so when a directory's newest checkpoint stands in."""
+    try:
+        path, note = find_model(args.model or default_out(env, "train"))
+    except FileNotFoundError as exc:
         raise SystemExit(
-            f"gymprecice evaluate: no trained model at {path}; train one first "
-            f"(`gymprecice train {env.name}`) or pass --model"
-        )
+            f"gymprecice evaluate: {exc}; train one first (`gymprecice train {env.name}`) "
+            f"or pass --model"
+        ) from None
+    if note:
+        print(f"gymprecice evaluate: {note}")
     return path
+
+
+def _read_baseline(path: Path) -> dict[str, Any]:
+    try:
+        return json.loads((path / "summary.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise SystemExit(
+            f"gymprecice: --baseline {path}: no readable summary.json ({exc}); run "
+            f"`gymprecice baseline ENV --out {path}` first"
+        ) from None
+
+
+def _report(command: str, summary: dict[str, Any], out: Path) -> str:
+    """One line: mean ± std over the episodes of return and Cd (and % change if known)."""
+    stats = summary["over_episodes"]
+    parts = []
+    for key, label in (("return", "return"), ("mean_Cd", "mean Cd"), ("mean_Cl", "mean Cl")):
+        if key in stats:
+            part = f"{label} {stats[key]['mean']:.4f} ± {stats[key]['std']:.4f}"
+            change = summary.get("change_percent", {}).get(key)
+            if change is not None:
+                part += f" ({change:+.2f} % against the baseline)"
+            parts.append(part)
+    return (
+        f"gymprecice {command}: {len(summary['episodes'])} episode(s), "
+        f"{', '.join(parts)} (mean ± std over episodes); results in {out}"
+    )
 
 
 def rollout_command(command: str, args: argparse.Namespace) -> int:
@@ -176,16 +241,17 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
     except KeyError as exc:
         print(f"gymprecice {command}: {exc.args[0]}", file=sys.stderr)
         return 2
-    if args.require_solvers and not args.double:
-        status = require_solvers(env_info, command)
+    if not args.double:
+        status = require_solvers(env_info, command, verbose=args.require_solvers)
         if status:
             return status
+    baseline = _read_baseline(args.baseline) if getattr(args, "baseline", None) else None
     model_path = _model_path(args, env_info) if command == "evaluate" else None
     out = (args.out or default_out(env_info, command)).resolve()
     kwargs = build_env_kwargs(args, env_info, out)
     # The policy acts in [-1, 1] (training rescales); the fixed controllers act in the
     # env's own units, so that "zero" means jets closed.
-    env = make_env(env_info.env_id, 0, kwargs, rescale=command == "evaluate")
+    env = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=command == "evaluate")
     settings: dict[str, Any] = {
         "env_id": env_info.env_id,
         "env_kwargs": kwargs,
@@ -194,17 +260,25 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
     }
     try:
         if command == "evaluate":
-            from stable_baselines3 import PPO
-
             assert model_path is not None
-            model = PPO.load(model_path, device="cpu")
+            model = load_model(model_path)
+            normalizer = _normalizer(model_path)
             deterministic = not args.stochastic
 
             def controller(obs: Any, t: float) -> Any:
+                if normalizer is not None:
+                    obs = normalizer.normalize_obs(obs)
                 action, _ = model.predict(obs, deterministic=deterministic)
                 return action
 
-            settings.update({"model": str(model_path.resolve()), "deterministic": deterministic})
+            settings.update(
+                {
+                    "model": str(model_path.resolve()),
+                    "model_sha256": file_sha256(model_path),
+                    "normalization": str(vecnormalize_path(model_path)) if normalizer else None,
+                    "deterministic": deterministic,
+                }
+            )
         elif command == "baseline":
             controller = zero_controller(env.action_space)
         else:
@@ -217,6 +291,10 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
         seeds = {"seed": args.seed, "episode_seeds": [args.seed + i for i in range(args.episodes)]}
         write_manifest(out, command=command, case_dir=case_dir, seeds=seeds, settings=settings)
         summary = rollout(env, controller, out, episodes=args.episodes, seed=args.seed)
+        if baseline is not None:
+            summary["baseline"] = str(args.baseline.resolve())
+            summary["change_percent"] = change_against(summary, baseline)
+            (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     finally:
         env.close()
     write_manifest(
@@ -228,10 +306,18 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
         solvers=read_manifest(out)["solvers"],
         extra={"result": summary},
     )
-    last = summary["episodes"][-1]
-    cd = f", mean Cd {last['mean_Cd']:.4f}" if last.get("mean_Cd") is not None else ""
-    print(
-        f"gymprecice {command}: {len(summary['episodes'])} episode(s), return "
-        f"{summary['mean_return']:.4f}{cd}; results in {out}"
-    )
+    print(_report(command, summary, out))
     return 0
+
+
+def _normalizer(model_path: Path) -> Any:
+    """The frozen ``VecNormalize`` statistics saved with a model (``None`` if none were)."""
+    import pickle
+
+    path = vecnormalize_path(model_path)
+    if not path.is_file():
+        return None
+    with path.open("rb") as handle:
+        stats = pickle.load(handle)
+    stats.training = False
+    return stats

@@ -12,7 +12,12 @@ files or which seeds produced it; the manifest does:
 * ``config_files``: SHA-256 of every configuration file of the case (``gymprecice-config.json``,
   ``precice-config.xml``, the solvers' dictionaries): a changed mesh or time step shows up
   as a changed hash;
+* ``source``: the source revision (``git describe`` when the packages run from a
+  checkout; otherwise ``packages`` is what identifies the code);
 * ``seeds`` and ``settings``: everything else that decides the run.
+
+``pyprecice`` counts as present only when the doctor could import it: an installed
+distribution whose preCICE library is broken would otherwise read as a real-solver run.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import json
 import os
 import platform
 import shlex
+import subprocess
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from datetime import datetime, timezone
@@ -32,9 +38,11 @@ from typing import Any
 __all__ = [
     "MANIFEST_NAME",
     "config_file_hashes",
+    "file_sha256",
     "package_versions",
     "read_manifest",
     "solver_versions",
+    "source_revision",
     "write_manifest",
 ]
 
@@ -89,6 +97,48 @@ def solver_versions() -> dict[str, Any]:
     return {"ok": report["ok"], "checks": [{k: c.get(k) for k in keys} for c in report["checks"]]}
 
 
+def source_revision(where: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """``git describe --always --dirty`` of the checkout this code runs from, if any.
+
+    ``{"git": None}`` for an installed package: its versions (``packages``) identify it.
+    """
+    root = Path(where) if where is not None else Path(__file__).resolve().parent
+    try:
+        proc = subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--tags"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=False,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return {"git": None, "identified_by": "packages"}
+    if proc.returncode != 0 or not proc.stdout.strip():
+        return {"git": None, "identified_by": "packages"}
+    return {"git": proc.stdout.strip(), "identified_by": "git"}
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """SHA-256 of a file (a saved model), read in chunks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for chunk in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def _importable_packages(
+    packages: dict[str, str | None], solvers: Mapping[str, Any]
+) -> dict[str, str | None]:
+    """``pyprecice``'s version only if the doctor could import it (``None`` otherwise)."""
+    for check in solvers.get("checks", []):
+        if check.get("name") == "pyprecice" and not check.get("ok"):
+            packages = dict(packages)
+            packages["pyprecice"] = None
+    return packages
+
+
 def _is_config_file(rel: Path) -> bool:
     parts = rel.parts
     if any(p in _SKIPPED_DIRS or p.startswith("processor") for p in parts[:-1]):
@@ -141,6 +191,7 @@ def write_manifest(
     rewrites its manifest at the end reuses the first one's).
     """
     argv = list(sys.argv if argv is None else argv)
+    solvers = dict(solvers) if solvers is not None else solver_versions()
     data: dict[str, Any] = {
         "command": command,
         "argv": argv,
@@ -149,8 +200,9 @@ def write_manifest(
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "python": platform.python_version(),
         "platform": platform.platform(),
-        "packages": package_versions(),
-        "solvers": dict(solvers) if solvers is not None else solver_versions(),
+        "packages": _importable_packages(package_versions(), solvers),
+        "source": source_revision(),
+        "solvers": solvers,
         "case_dir": str(case_dir) if case_dir is not None else None,
         "config_files": config_file_hashes(case_dir),
         "seeds": dict(seeds or {}),

@@ -1,30 +1,35 @@
-"""``gymprecice train``: PPO (Stable-Baselines3) on N parallel tutorial environments.
+"""``gymprecice train``: PPO, SAC or TD3 (Stable-Baselines3) on N parallel tutorial envs.
 
-What a long training run on a shared machine needs, and how it is met:
+What a long training run on a shared machine or a cluster needs, and how it is met:
 
 * **parallel simulations that do not take training down**: the envs run in subprocesses
   through :class:`gymprecice.sb3.ResilientSubprocVecEnv` (a crashed or hung solver costs
   one episode, not the run) when it is installed, else SB3's ``SubprocVecEnv``;
-* **resumable**: checkpoints go to ``<out>/checkpoints/ppo_<steps>_steps.zip`` every
-  ``--checkpoint-every`` env steps and at the end; a rerun of the same command continues
-  from the newest one (``--fresh`` starts over);
-* **observable**: a progress bar, TensorBoard logs in ``<out>/tb``, per-env episode
-  returns in ``<out>/monitor/env_<i>.monitor.csv`` (what ``gymprecice plot`` draws);
-* **traceable**: ``<out>/manifest.json`` (versions, solver checks, case hashes, seeds);
-* **fails fast**: ``--require-solvers`` runs ``gymprecice doctor``'s checks first and stops
-  with their explanation when preCICE or a solver the env needs is missing.
+* **resumable and preemptible**: checkpoints go to ``<out>/checkpoints`` every
+  ``--checkpoint-every`` env steps (the newest ``--keep-checkpoints`` and the best are
+  kept); Ctrl-C, SIGTERM (SLURM, ``timeout``) and SIGHUP save the model and a checkpoint
+  and exit non-zero; a rerun of the same command continues (``--fresh`` starts over).
+  A resume with other hyperparameters is refused: SB3 would keep the saved ones;
+* **observable**: a progress bar, TensorBoard in ``<out>/tb`` and ``<out>/progress.csv``
+  (SB3's logger, with each episode's mean Cd, Cl and action RMS under ``env/``), per-env
+  episodes in ``<out>/monitor/env_<i>.monitor.csv`` (what ``gymprecice plot`` draws);
+  ``--eval-freq`` evaluates on a separate env and keeps ``best_model.zip``;
+* **traceable**: ``<out>/manifest.json`` with one record per segment (first run and each
+  resume), the hyperparameters actually used, the device, the source revision and the
+  model's checksum; ``<out>/hyperparams.json`` and a copy of ``--hyperparams``.
 
-Actions are rescaled to ``[-1, 1]`` for the policy (``RescaleAction``): PPO's Gaussian
-policy starts with unit standard deviation, which against a ``±2.5e-4`` box would only
-ever produce the bounds.
+Actions are rescaled to ``[-1, 1]`` for the policy (``RescaleAction``): a Gaussian policy
+starts with unit standard deviation, which against a ``±2.5e-4`` box would only ever
+produce the bounds. :func:`gymprecice_tutorials.envs.load_policy` rebuilds that env.
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
-import io
-import re
+import json
+import math
+import shutil
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -32,14 +37,27 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 
-from gymprecice_tutorials.manifest import read_manifest, write_manifest
-from gymprecice_tutorials.plugin import ENVIRONMENTS, TutorialEnv, find_environment
+from gymprecice_tutorials import hyperparams as hp
+from gymprecice_tutorials.environments import ENVIRONMENTS, TutorialEnv, find_environment
+from gymprecice_tutorials.envs import (
+    make_env,
+    make_env_checked,
+    newest_checkpoint,
+    vecnormalize_path,
+)
+from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
+from gymprecice_tutorials.requirements import (
+    doctor_text,
+    missing_requirements,
+    require_solvers,
+)
+from gymprecice_tutorials.training_log import merge_progress, segment_logger
 
 __all__ = [
-    "CHECKPOINT_PREFIX",
     "build_env_kwargs",
+    "check_device",
+    "default_out",
     "doctor_text",
     "latest_checkpoint",
     "make_env",
@@ -49,76 +67,8 @@ __all__ = [
     "train_command",
 ]
 
-CHECKPOINT_PREFIX = "ppo"
-_CHECKPOINT = re.compile(rf"^{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
-
-#: ``gymprecice doctor`` checks each environment needs: a check counts when its name, in
-#: lower case, starts with one of these (``openfoam`` covers OpenFOAM itself and the
-#: OpenFOAM-preCICE adapter, without which OpenFOAM runs uncoupled and the controller waits
-#: forever). The two-process cylinder cases also need decomposePar and mpirun.
-_NEEDS: dict[str, tuple[str, ...]] = {
-    "jet-cylinder": ("pyprecice", "openfoam", "blockmesh", "decomposepar", "mpirun"),
-    "rotating-cylinder": ("pyprecice", "openfoam", "blockmesh", "decomposepar", "mpirun"),
-    "quickstart": ("pyprecice", "openfoam", "blockmesh"),
-    "perpendicular-flap": ("pyprecice", "openfoam", "deal.ii", "elasticity"),
-}
-
-
-# -- solver requirements -------------------------------------------------------------------
-
-
-def missing_requirements(report: Mapping[str, Any], env: TutorialEnv) -> list[dict[str, Any]]:
-    """The failed doctor checks that ``env`` needs to run on real solvers.
-
-    Every failed *required* check counts, plus the checks the env itself needs
-    (``_NEEDS``): the doctor marks only Python and pyprecice as required for everyone.
-    """
-    needs = _NEEDS.get(env.name, ("pyprecice",))
-    missing = []
-    for check in report["checks"]:
-        if check["ok"]:
-            continue
-        name = str(check["name"]).lower()
-        if check.get("required") or name.startswith(needs):
-            missing.append(dict(check))
-    return missing
-
-
-def doctor_text(report: Mapping[str, Any]) -> str:
-    """The doctor report as ``gymprecice doctor`` prints it."""
-    out = io.StringIO()
-    for check in report["checks"]:
-        mark = "[ok]     " if check["ok"] else "[MISSING]" if check["required"] else "[--]     "
-        required = " (required)" if check["required"] else ""
-        source = "" if check["source"] == "core" else f" [{check['source']}]"
-        print(f"{mark} {check['name']}{required}{source}: {check['detail']}", file=out)
-        if not check["ok"] and check.get("advice"):
-            print(f"          -> {check['advice']}", file=out)
-    return out.getvalue()
-
-
-def require_solvers(env: TutorialEnv, command: str = "train") -> int:
-    """0 when this machine can run ``env`` on real solvers; else explain and return 1."""
-    from gymprecice.cli import doctor_report
-
-    report = doctor_report()
-    missing = missing_requirements(report, env)
-    if not missing:
-        return 0
-    names = ", ".join(
-        "pyprecice (the preCICE library and its Python bindings)"
-        if c["name"] == "pyprecice"
-        else str(c["name"])
-        for c in missing
-    )
-    print(
-        f"gymprecice {command}: {env.name} cannot run on real solvers on this machine; "
-        f"missing: {names}.\n\n{doctor_text(report)}\n"
-        f"Install what is missing (see the advice above and the README's 'Real preCICE'), "
-        f"or add --double to run against gymprecice's preCICE test double.",
-        file=sys.stderr,
-    )
-    return 1
+#: kept for callers of the earlier API: the newest checkpoint of a directory
+latest_checkpoint = newest_checkpoint
 
 
 # -- environments --------------------------------------------------------------------------
@@ -152,47 +102,10 @@ def build_env_kwargs(args: argparse.Namespace, env: TutorialEnv, out: Path) -> d
                 "(its episode length is the coupling's max-time)"
             )
         kwargs["episode_time"] = float(episode_time)
-    elif getattr(args, "default_episode_time", None) and env.recipe:
-        kwargs["episode_time"] = float(args.default_episode_time)
+    elif getattr(args, "rollout", False) and env.recipe and env.rollout_time:
+        kwargs["episode_time"] = float(env.rollout_time)
     kwargs.update(args.env_kwargs or {})
     return kwargs
-
-
-def make_env(
-    env_id: str,
-    idx: int,
-    kwargs: Mapping[str, Any],
-    *,
-    monitor_file: str | None = None,
-    rescale: bool = True,
-) -> gym.Env:
-    """One environment as training and evaluation see it (module level: picklable).
-
-    ``rescale`` maps a bounded ``Box`` action space to ``[-1, 1]``; ``monitor_file`` records
-    episode returns and lengths with SB3's ``Monitor`` (appending on resume).
-    """
-    import gymprecice  # noqa: F401  (registers the gymprecice/... ids in this process)
-
-    env = gym.make(env_id, idx=idx, **dict(kwargs))
-    space = env.action_space
-    if (
-        rescale
-        and isinstance(space, gym.spaces.Box)
-        and np.all(np.isfinite(space.low))
-        and np.all(np.isfinite(space.high))
-    ):
-        unit = np.ones(space.shape, dtype=space.dtype)
-        env = gym.wrappers.RescaleAction(env, -unit, unit)
-    if monitor_file is not None:
-        from stable_baselines3.common.monitor import Monitor
-
-        # A resumed run appends to its monitor file (SB3 writes the header only into a
-        # new file, so a new file must be started with override_existing=True).
-        exists = Path(
-            monitor_file if monitor_file.endswith(".csv") else f"{monitor_file}.monitor.csv"
-        )
-        env = Monitor(env, filename=monitor_file, override_existing=not exists.is_file())
-    return env
 
 
 def _vec_env(fns: Sequence[Callable[[], gym.Env]], kind: str, log_dir: Path) -> Any:
@@ -220,137 +133,6 @@ def _vec_env(fns: Sequence[Callable[[], gym.Env]], kind: str, log_dir: Path) -> 
     return SubprocVecEnv(list(fns))
 
 
-# -- checkpoints ---------------------------------------------------------------------------
-
-
-def latest_checkpoint(directory: Path) -> tuple[Path, int] | None:
-    """The checkpoint with the most env steps in ``directory`` (``None`` if there is none)."""
-    best: tuple[Path, int] | None = None
-    if not directory.is_dir():
-        return None
-    for path in directory.iterdir():
-        match = _CHECKPOINT.match(path.name)
-        if match and (best is None or int(match.group(1)) > best[1]):
-            best = (path, int(match.group(1)))
-    return best
-
-
-# -- training ------------------------------------------------------------------------------
-
-
-def train(
-    env: TutorialEnv,
-    out: Path,
-    env_kwargs: Mapping[str, Any],
-    *,
-    n_envs: int = 1,
-    timesteps: int = 100_000,
-    n_steps: int = 80,
-    batch_size: int = 80,
-    n_epochs: int = 10,
-    learning_rate: float = 3e-4,
-    gamma: float = 0.99,
-    net: Sequence[int] = (512, 512),
-    checkpoint_every: int | None = None,
-    fresh: bool = False,
-    vec_env: str = "auto",
-    progress_bar: bool = True,
-    device: str = "cpu",
-    seed: int = 0,
-) -> dict[str, Any]:
-    """Train (or resume training) and return a summary; see the module docstring."""
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
-
-    out.mkdir(parents=True, exist_ok=True)
-    checkpoints = out / "checkpoints"
-    monitor = out / "monitor"
-    monitor.mkdir(exist_ok=True)
-    if fresh:
-        for old in list(checkpoints.glob(f"{CHECKPOINT_PREFIX}_*_steps.zip")) + list(
-            monitor.glob("*.monitor.csv")
-        ):
-            old.unlink()
-    fns = [
-        functools.partial(
-            make_env,
-            env.env_id,
-            i,
-            dict(env_kwargs),
-            monitor_file=str(monitor / f"env_{i}"),
-        )
-        for i in range(n_envs)
-    ]
-    vec = _vec_env(fns, vec_env, out / "workers")
-    try:
-        vec.seed(seed)
-        resume = None if fresh else latest_checkpoint(checkpoints)
-        if resume is not None:
-            model = PPO.load(
-                resume[0], env=vec, device=device, tensorboard_log=str(out / "tb"), seed=seed
-            )
-            print(f"gymprecice train: resuming from {resume[0]} ({model.num_timesteps} steps)")
-        else:
-            if batch_size > n_steps * n_envs:
-                batch_size = n_steps * n_envs
-            model = PPO(
-                "MlpPolicy",
-                vec,
-                n_steps=n_steps,
-                batch_size=batch_size,
-                n_epochs=n_epochs,
-                learning_rate=learning_rate,
-                gamma=gamma,
-                policy_kwargs={"net_arch": {"pi": list(net), "vf": list(net)}},
-                tensorboard_log=str(out / "tb"),
-                seed=seed,
-                device=device,
-                verbose=0,
-            )
-        done_before = int(model.num_timesteps)
-        remaining = timesteps - done_before
-        every = checkpoint_every or 10 * model.n_steps * n_envs
-        callbacks: list[Any] = [
-            CheckpointCallback(
-                save_freq=max(1, every // n_envs),
-                save_path=str(checkpoints),
-                name_prefix=CHECKPOINT_PREFIX,
-            )
-        ]
-        callbacks += _telemetry_callbacks(vec)
-        started = time.monotonic()
-        interrupted = False
-        if remaining > 0:
-            try:
-                model.learn(
-                    total_timesteps=remaining,
-                    callback=CallbackList(callbacks),
-                    tb_log_name=CHECKPOINT_PREFIX,
-                    reset_num_timesteps=resume is None,
-                    progress_bar=progress_bar,
-                )
-            except KeyboardInterrupt:
-                # Ctrl-C: keep what was learnt (the policy lives in this process); the
-                # same command resumes from the checkpoint written below.
-                interrupted = True
-        else:
-            print(f"gymprecice train: already trained for {done_before} >= {timesteps} steps")
-        checkpoints.mkdir(parents=True, exist_ok=True)
-        final = checkpoints / f"{CHECKPOINT_PREFIX}_{model.num_timesteps}_steps.zip"
-        model.save(final)
-        model.save(out / "model.zip")
-        return {
-            "timesteps": int(model.num_timesteps),
-            "resumed_from": str(resume[0]) if resume else None,
-            "steps_this_run": int(model.num_timesteps) - done_before,
-            "seconds": round(time.monotonic() - started, 3),
-            "model": str(out / "model.zip"),
-            "interrupted": interrupted,
-        }
-    finally:
-        vec.close()
-
-
 def _telemetry_callbacks(vec: Any) -> list[Any]:
     """gymprecice's telemetry callback (time in solvers vs env vs learner, failures) in
     TensorBoard, for the resilient vector env that measures it."""
@@ -359,6 +141,192 @@ def _telemetry_callbacks(vec: Any) -> list[Any]:
     except ImportError:
         return []
     return [TelemetryCallback()] if isinstance(vec, ResilientSubprocVecEnv) else []
+
+
+# -- training ------------------------------------------------------------------------------
+
+
+def rollout_chunk(params: Mapping[str, Any], n_envs: int) -> int:
+    """Env steps the algorithm takes between two checks of ``total_timesteps``.
+
+    PPO collects whole rollouts of ``n_steps`` per env; SAC/TD3 ``train_freq`` steps per
+    env (one by default). Training always ends on such a boundary.
+    """
+    if params["algo"] == "ppo":
+        return int(params["n_steps"]) * n_envs
+    freq = params.get("train_freq", 1)
+    steps = freq[0] if isinstance(freq, (list, tuple)) else freq
+    unit = freq[1] if isinstance(freq, (list, tuple)) and len(freq) > 1 else "step"
+    return int(steps) * n_envs if unit == "step" else n_envs
+
+
+def train(
+    env: TutorialEnv,
+    out: Path,
+    env_kwargs: Mapping[str, Any],
+    params: Mapping[str, Any],
+    *,
+    n_envs: int = 1,
+    timesteps: int = 100_000,
+    checkpoint_every: int | None = None,
+    keep_checkpoints: int = 5,
+    eval_freq: int | None = None,
+    n_eval_episodes: int = 5,
+    resume: Path | None = None,
+    vec_env: str = "auto",
+    progress_bar: bool = True,
+    device: str = "cpu",
+    seed: int = 0,
+    verbose: int = 0,
+    segment: int = 1,
+) -> dict[str, Any]:
+    """Train (or resume ``resume``) to ``timesteps`` env steps and return a summary.
+
+    ``params`` are resolved hyperparameters (:func:`hyperparams.resolve`). Interruption by
+    Ctrl-C, SIGTERM or SIGHUP is caught: the model and a checkpoint are saved and
+    ``result["interrupted"]`` names the signal.
+    """
+    from stable_baselines3.common.callbacks import CallbackList
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from gymprecice_tutorials.callbacks import (
+        EpisodeMetricsCallback,
+        Interrupted,
+        RotatingCheckpoints,
+        prune_checkpoints,
+        record_checkpoint,
+        stop_signals_interrupt,
+    )
+    from gymprecice_tutorials.evaluation_callback import eval_callback
+
+    algo = params["algo"]
+    prefix = algo
+    out.mkdir(parents=True, exist_ok=True)
+    checkpoints = out / "checkpoints"
+    monitor = out / "monitor"
+    monitor.mkdir(exist_ok=True)
+    fns = [
+        functools.partial(
+            make_env, env.env_id, i, dict(env_kwargs), monitor_file=str(monitor / f"env_{i}")
+        )
+        for i in range(n_envs)
+    ]
+    base = _vec_env(fns, vec_env, out / "workers")
+    vec: Any = base
+    evaluator: Any = None
+    try:
+        base.seed(seed)
+        normalize = bool(params.get("normalize"))
+        cls = hp.algorithm_class(algo)
+        if resume is not None:
+            if normalize:
+                vec = VecNormalize.load(str(vecnormalize_path(resume)), base)
+            model = cls.load(resume, env=vec, device=device, seed=seed)
+            steps = resume.name[len(prefix) + 1 : -len("_steps.zip")]
+            buffer = resume.with_name(f"{prefix}_replay_buffer_{steps}_steps.pkl")
+            if algo != "ppo" and buffer.is_file():
+                model.load_replay_buffer(buffer)
+            print(f"gymprecice train: resuming from {resume} ({model.num_timesteps} steps)")
+        else:
+            if normalize:
+                vec = VecNormalize(base, gamma=float(params["gamma"]))
+            model = cls(
+                "MlpPolicy",
+                vec,
+                seed=seed,
+                device=device,
+                verbose=verbose,
+                **hp.model_kwargs(params),
+            )
+        model.set_logger(segment_logger(out, algo, segment, verbose))
+        done_before = int(model.num_timesteps)
+        chunk = rollout_chunk(params, n_envs)
+        remaining = max(0, timesteps - done_before)
+        remaining = math.ceil(remaining / chunk) * chunk
+        target = done_before + remaining
+        if remaining and target != timesteps:
+            print(
+                f"gymprecice train: --timesteps {timesteps:,} is not a whole number of "
+                f"{algo.upper()} rollouts of {chunk} steps from {done_before:,}; training to "
+                f"{target:,}"
+            )
+        every = checkpoint_every or 10 * chunk
+        callbacks: list[Any] = [
+            RotatingCheckpoints(
+                save_freq=max(1, every // n_envs),
+                save_path=str(checkpoints),
+                name_prefix=prefix,
+                save_vecnormalize=normalize,
+                save_replay_buffer=algo != "ppo",
+                keep=keep_checkpoints,
+            ),
+            EpisodeMetricsCallback(),
+        ]
+        if eval_freq:
+            evaluator = eval_callback(
+                env, out, env_kwargs, n_envs, eval_freq, n_eval_episodes, seed, normalize
+            )
+            callbacks.append(evaluator)
+        callbacks += _telemetry_callbacks(base)
+        started = time.monotonic()
+        interrupted: str | None = None
+        if remaining > 0:
+            try:
+                with stop_signals_interrupt():
+                    model.learn(
+                        total_timesteps=remaining,
+                        callback=CallbackList(callbacks),
+                        reset_num_timesteps=resume is None,
+                        progress_bar=progress_bar,
+                    )
+            except Interrupted as exc:
+                interrupted = str(exc)
+            except KeyboardInterrupt:
+                # Ctrl-C: keep what was learnt (the policy lives in this process); the
+                # same command resumes from the checkpoint written below.
+                interrupted = "SIGINT"
+        else:
+            print(f"gymprecice train: already trained for {done_before:,} >= {timesteps:,} steps")
+        final = _save(model, vec, checkpoints, out, prefix, normalize)
+        record_checkpoint(checkpoints, final, model)
+        prune_checkpoints(checkpoints, prefix, keep_checkpoints)
+        return {
+            "timesteps": int(model.num_timesteps),
+            "timesteps_requested": timesteps,
+            "timesteps_target": target,
+            "resumed_from": str(resume) if resume else None,
+            "steps_this_run": int(model.num_timesteps) - done_before,
+            "seconds": round(time.monotonic() - started, 3),
+            "model": str(out / "model.zip"),
+            "model_sha256": file_sha256(out / "model.zip"),
+            "checkpoint": str(final),
+            "device": str(model.device),
+            "interrupted": interrupted,
+        }
+    finally:
+        merge_progress(out, segment)
+        try:
+            if evaluator is not None:
+                evaluator.eval_env.close()
+            vec.close()
+        except (EOFError, BrokenPipeError, OSError):
+            pass  # workers already gone (killed with the job): nothing left to close
+
+
+def _save(model: Any, vec: Any, checkpoints: Path, out: Path, prefix: str, normalize: bool) -> Path:
+    """Save the final checkpoint, ``model.zip`` and their normalisation statistics."""
+    checkpoints.mkdir(parents=True, exist_ok=True)
+    final = checkpoints / f"{prefix}_{model.num_timesteps}_steps.zip"
+    model.save(final)
+    model.save(out / "model.zip")
+    if normalize:
+        vec.save(str(vecnormalize_path(final)))
+        vec.save(str(vecnormalize_path(out / "model.zip")))
+    if getattr(model, "replay_buffer", None) is not None:
+        model.save_replay_buffer(
+            checkpoints / f"{prefix}_replay_buffer_{model.num_timesteps}_steps.pkl"
+        )
+    return final
 
 
 def _net(text: str) -> list[int]:
@@ -375,92 +343,219 @@ def default_out(env: TutorialEnv, command: str) -> Path:
     return Path("runs") / env.name / command
 
 
-def train_command(args: argparse.Namespace) -> int:
-    """``gymprecice train``."""
+def check_device(device: str) -> None:
+    """Refuse a torch device this machine does not have (SB3 would fall back silently)."""
+    import torch
+
     try:
-        env = find_environment(args.env)
-    except KeyError as exc:
-        print(f"gymprecice train: {exc.args[0]}", file=sys.stderr)
-        return 2
-    if args.require_solvers and not args.double:
-        status = require_solvers(env, "train")
-        if status:
-            return status
-    out = (args.out or default_out(env, "train")).resolve()
-    kwargs = build_env_kwargs(args, env, out)
-    case_dir = _case_dir(env, kwargs)
-    settings = {
-        key: getattr(args, key)
-        for key in (
-            "n_envs",
-            "timesteps",
-            "n_steps",
-            "batch_size",
-            "n_epochs",
-            "learning_rate",
-            "gamma",
-            "net",
-            "checkpoint_every",
-            "fresh",
-            "vec_env",
-            "device",
-            "double",
+        kind = torch.device(device).type
+    except (RuntimeError, TypeError) as exc:
+        raise SystemExit(f"gymprecice train: --device {device}: {exc}") from None
+    if kind == "cuda" and not torch.cuda.is_available():
+        raise SystemExit(
+            f"gymprecice train: --device {device}: this torch ({torch.__version__}) sees no "
+            f"CUDA device; use --device cpu (or install a CUDA build of torch)"
         )
+    if kind == "mps" and not torch.backends.mps.is_available():
+        raise SystemExit(
+            f"gymprecice train: --device {device}: MPS is not available; use --device cpu"
+        )
+
+
+def _params(args: argparse.Namespace, env: TutorialEnv, out: Path) -> dict[str, Any]:
+    """The run's resolved hyperparameters; copies ``--hyperparams`` into ``out``."""
+    from_file: dict[str, Any] = {}
+    if args.hyperparams is not None:
+        keys = (env.env_id, env.name, env.env_id.split("/", 1)[1])
+        from_file = hp.load_hyperparams_file(args.hyperparams, args.algo, keys)
+    flags = {
+        "n_steps": args.n_steps,
+        "batch_size": args.batch_size,
+        "n_epochs": args.n_epochs,
+        "learning_rate": args.learning_rate,
+        "gamma": args.gamma,
+        "net": _net(args.net) if args.net is not None else None,
+        "normalize": True if args.normalize else None,
     }
-    settings.update({"env_id": env.env_id, "env_kwargs": kwargs})
-    seeds = {"seed": args.seed, "env_seeds": [args.seed + i for i in range(args.n_envs)]}
-    write_manifest(out, command="train", case_dir=case_dir, seeds=seeds, settings=settings)
-    result = train(
-        env,
-        out,
-        kwargs,
-        n_envs=args.n_envs,
-        timesteps=args.timesteps,
-        n_steps=args.n_steps,
-        batch_size=args.batch_size,
-        n_epochs=args.n_epochs,
-        learning_rate=args.learning_rate,
-        gamma=args.gamma,
-        net=_net(args.net),
-        checkpoint_every=args.checkpoint_every,
-        fresh=args.fresh,
-        vec_env=args.vec_env,
-        progress_bar=not args.no_progress_bar,
-        device=args.device,
-        seed=args.seed,
-    )
-    write_manifest(
-        out,
-        command="train",
-        case_dir=case_dir,
-        seeds=seeds,
-        settings=settings,
-        solvers=read_manifest(out)["solvers"],
-        extra={"result": result},
-    )
-    if result["interrupted"]:
-        print(
-            f"gymprecice train: interrupted after {result['timesteps']} steps; saved "
-            f"{result['model']} and a checkpoint; run the same command again to resume",
-            file=sys.stderr,
+    return hp.resolve(args.algo, from_file, flags)
+
+
+def _refuse_changed_resume(out: Path, params: Mapping[str, Any]) -> None:
+    saved_path = out / hp.HYPERPARAMS_NAME
+    if not saved_path.is_file():
+        return
+    changed = hp.changed_on_resume(json.loads(saved_path.read_text()), params)
+    if changed:
+        raise SystemExit(
+            f"gymprecice train: cannot resume {out} with other hyperparameters: "
+            f"{'; '.join(changed)} (SB3 would keep the saved values); rerun with the run's "
+            f"values (see {saved_path.name}) or add --fresh to start over"
         )
-        return 130
-    print(
-        f"gymprecice train: {result['timesteps']} steps; model {result['model']}; "
-        f"TensorBoard: tensorboard --logdir {out / 'tb'}"
+
+
+def _adjust_batch_size(params: dict[str, Any], n_envs: int) -> list[str]:
+    """PPO's mini-batch cannot exceed its rollout buffer: clamp it, say so, record it."""
+    if params["algo"] != "ppo":
+        return []
+    buffer = int(params["n_steps"]) * n_envs
+    if int(params["batch_size"]) <= buffer:
+        return []
+    note = (
+        f"--batch-size {params['batch_size']} is larger than the rollout buffer "
+        f"(--n-steps {params['n_steps']} x --n-envs {n_envs} = {buffer}); training with "
+        f"batch size {buffer}"
     )
-    return 0
+    params["batch_size"] = buffer
+    print(f"gymprecice train: warning: {note}", file=sys.stderr)
+    return [note]
 
 
-def _case_dir(env: TutorialEnv, kwargs: Mapping[str, Any]) -> Path | None:
+def _start_fresh(out: Path) -> None:
+    """``--fresh``: remove what a previous run left that would be mistaken for this one."""
+    for pattern in ("checkpoints", "monitor", "tb", "eval"):
+        shutil.rmtree(out / pattern, ignore_errors=True)
+    for name in (
+        "model.zip",
+        "best_model.zip",
+        "progress.csv",
+        hp.HYPERPARAMS_NAME,
+        "manifest.json",
+    ):
+        (out / name).unlink(missing_ok=True)
+    for path in out.glob("*_vecnormalize.pkl"):
+        path.unlink()
+
+
+def _env_probe(env: TutorialEnv, kwargs: Mapping[str, Any]) -> Path | None:
     """The case the envs will run (materialised now, once, for all of them).
 
     Building one env here (no solver starts before ``reset``) writes the recipe's case, so
-    the N env processes find it ready, and gives its directory for the manifest.
+    the N env processes find it ready, gives its directory for the manifest, and turns a
+    wrong ``--env-kwargs`` into one line instead of N crashed workers.
     """
-    probe = make_env(env.env_id, 0, kwargs, rescale=False)
+    probe = make_env_checked(env.name, env.env_id, 0, kwargs, rescale=False)
     try:
         config = getattr(probe.unwrapped, "config", None)
         return Path(config.case_dir) if config is not None else None
     finally:
         probe.close()
+
+
+def train_command(args: argparse.Namespace) -> int:
+    """``gymprecice train``."""
+    from gymprecice_tutorials.manifest import solver_versions
+
+    try:
+        env = find_environment(args.env)
+    except KeyError as exc:
+        print(f"gymprecice train: {exc.args[0]}", file=sys.stderr)
+        return 2
+    solvers = solver_versions()
+    if not args.double:
+        status = require_solvers(
+            env, "train", None if args.require_solvers else solvers, verbose=args.require_solvers
+        )
+        if status:
+            return status
+    check_device(args.device)
+    out = (args.out or default_out(env, "train")).resolve()
+    params = _params(args, env, out)
+    resume = None if args.fresh else newest_checkpoint(out / "checkpoints")
+    if resume is not None:
+        _refuse_changed_resume(out, params)
+    if args.fresh:
+        _start_fresh(out)
+    kwargs = build_env_kwargs(args, env, out)
+    case_dir = _env_probe(env, kwargs)
+    out.mkdir(parents=True, exist_ok=True)
+    if resume is None:
+        (out / hp.HYPERPARAMS_NAME).write_text(json.dumps(params, indent=2) + "\n")
+    if args.hyperparams is not None and args.hyperparams.resolve() != (out / "hyperparams.yaml"):
+        shutil.copyfile(args.hyperparams, out / "hyperparams.yaml")
+    used = dict(params)
+    adjusted = _adjust_batch_size(used, args.n_envs)
+    segments = _previous_segments(out) if resume is not None else []
+    settings = {
+        "n_envs": args.n_envs,
+        "timesteps": args.timesteps,
+        "checkpoint_every": args.checkpoint_every,
+        "keep_checkpoints": args.keep_checkpoints,
+        "eval_freq": args.eval_freq,
+        "n_eval_episodes": args.n_eval_episodes,
+        "fresh": args.fresh,
+        "vec_env": args.vec_env,
+        "device": args.device,
+        "double": args.double,
+        "hyperparams_file": str(args.hyperparams) if args.hyperparams else None,
+        "hyperparams": used,
+        "adjusted": adjusted,
+        "env_id": env.env_id,
+        "env_kwargs": kwargs,
+    }
+    seeds = {"seed": args.seed, "env_seeds": [args.seed + i for i in range(args.n_envs)]}
+
+    def record(result: Mapping[str, Any] | None) -> None:
+        segment = {"argv": list(sys.argv), "settings": settings, "seeds": seeds, "result": result}
+        write_manifest(
+            out,
+            command="train",
+            case_dir=case_dir,
+            seeds=seeds,
+            settings=settings,
+            solvers=solvers,
+            extra={"result": result, "segments": [*segments, segment]},
+        )
+
+    record(None)
+    result = train(
+        env,
+        out,
+        kwargs,
+        used,
+        n_envs=args.n_envs,
+        timesteps=args.timesteps,
+        checkpoint_every=args.checkpoint_every,
+        keep_checkpoints=args.keep_checkpoints,
+        eval_freq=args.eval_freq,
+        n_eval_episodes=args.n_eval_episodes,
+        resume=resume[0] if resume else None,
+        vec_env=args.vec_env,
+        progress_bar=not args.no_progress_bar,
+        device=args.device,
+        seed=args.seed,
+        verbose=args.verbose,
+        segment=len(segments) + 1,
+    )
+    record(result)
+    if result["interrupted"]:
+        print(
+            f"gymprecice train: interrupted ({result['interrupted']}) after "
+            f"{result['timesteps']:,} steps; saved {result['model']} and a checkpoint; run the "
+            f"same command again to resume",
+            file=sys.stderr,
+        )
+        return _exit_status(result["interrupted"])
+    print(
+        f"gymprecice train: {result['timesteps']:,} steps; model {result['model']}; "
+        f"TensorBoard: tensorboard --logdir {out / 'tb'}"
+    )
+    return 0
+
+
+def _exit_status(signal_name: str) -> int:
+    """128 + the signal's number, as a shell reports a process the signal ended."""
+    import signal
+
+    return 128 + int(getattr(signal, signal_name, signal.SIGINT))
+
+
+def _previous_segments(out: Path) -> list[dict[str, Any]]:
+    """The manifest records of the segments before this one (a resume keeps them all)."""
+    try:
+        manifest = read_manifest(out)
+    except (OSError, ValueError):
+        return []
+    if "segments" in manifest:
+        return list(manifest["segments"])
+    keys = ("argv", "settings", "seeds", "result")
+    return [{k: manifest.get(k) for k in keys}]
