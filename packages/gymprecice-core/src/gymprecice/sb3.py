@@ -51,7 +51,9 @@ class ResilientSubprocVecEnv(VecEnv):
 
     ``start_method`` as in SB3 (``"forkserver"`` by default, ``"spawn"``); every other
     keyword argument goes to :class:`~gymprecice.vector.EnvPool` (``step_timeout``,
-    ``reset_timeout``, ``max_failures_per_env``, ``failure_window``, ``log_dir``, ...).
+    ``reset_timeout``, ``max_failures_per_env``, ``failure_window``, ``log_dir``, ...),
+    ``backend="ray"`` or a :class:`~gymprecice.vector.ray.RayBackend` included: then the
+    envs are Ray actors on a cluster, with the same guarantees.
     """
 
     def __init__(

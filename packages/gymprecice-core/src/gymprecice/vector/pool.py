@@ -350,6 +350,11 @@ class EnvPool:
         return [slot.run_dir for slot in self._slots]
 
     @property
+    def hosts(self) -> list[Host | None]:
+        """Each env's current host (worker process, actor), None while it has none."""
+        return [slot.worker for slot in self._slots]
+
+    @property
     def worker_pids(self) -> list[int | None]:
         return [slot.worker.pid if slot.worker else None for slot in self._slots]
 
