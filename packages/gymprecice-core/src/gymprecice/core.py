@@ -19,6 +19,8 @@ a terminal state).
 from __future__ import annotations
 
 import atexit
+import logging
+import math
 import os
 import signal
 import threading
@@ -40,14 +42,23 @@ from gymprecice.config import (
 )
 from gymprecice.coupling import CouplingSession, CouplingState, WorkerProcess
 from gymprecice.errors import CaseError, ConfigError
+from gymprecice.pidregistry import kill_recorded_groups
 from gymprecice.plugins import get_plugin_manager, solver_kinds
 from gymprecice.processes import PidRegistry, SolverProcess
-from gymprecice.rundir import RunDirectory, create_run_directory, env_root
+from gymprecice.rundir import (
+    EnvIndexClaim,
+    RunDirectory,
+    claim_env_index,
+    create_run_directory,
+    env_root,
+)
 from gymprecice.solver import InterfaceGeometry, OutputReader, SolverContext
 
 __all__ = ["Adapter", "DataDict", "DataRef", "Timing"]
 
 LIBRARY_ENV_VAR = "GYMPRECICE_PRECICE_LIBRARY"
+
+log = logging.getLogger(__name__)
 
 
 class DataRef(NamedTuple):
@@ -191,7 +202,7 @@ class Adapter(gym.Env):
     def __init__(
         self,
         options: Mapping[str, Any] | str | Path | None = None,
-        idx: int = 0,
+        idx: int | None = None,
         *,
         run_root: str | Path | None = None,
         case_dir: str | Path | None = None,
@@ -204,8 +215,10 @@ class Adapter(gym.Env):
             )
         self.config: GymPreciceConfig = load_config(options, case_dir=case_dir)
         check_solver_kinds(self.config, solver_kinds())
-        self.env_index = idx
         self._run_root = run_root
+        #: held while this env owns an index it was not given (see _claim_index)
+        self._claim: EnvIndexClaim | None = None
+        self.env_index = idx if idx is not None else self._claim_index()
         self._hook = get_plugin_manager().hook
         model = self.config.model
         self._schedule = ActionSchedule(
@@ -230,6 +243,8 @@ class Adapter(gym.Env):
         self._episode_active = False
         self._episode_over = False
         self._closed = False
+        self._index_given = idx is not None
+        self._clipping_reported = False
         self.time = 0.0
         self.time_window = 0
         self.dt: float | None = self.config.time_window_size
@@ -419,15 +434,31 @@ class Adapter(gym.Env):
         self._end_episode(abort=True)
         self._close_readers()
         self._close_external_resources()
+        if self._closed:  # reset() after close() reopens the env: close() works again
+            self._closed = False
+            if not self._index_given and self._claim is None:
+                self._claim = claim_env_index(self._runs_base(), prefer=self.env_index)
         self._ensure_prepared()
         assert self._run is not None
+        # From here on solvers may run: exit-time cleanup and SIGTERM/SIGHUP must find them,
+        # including during this first reset.
+        _LIVE_ENVS.add(self)
+        _clean_up_on_termination_signals()
         registry = PidRegistry(self._run.root)
         worker = WorkerProcess(
             self._run.state_dir / "coupling-worker.log",
             registry,
             io_timeout=self._timeouts.progress,
         )
-        processes: list[SolverProcess] = []
+        session = CouplingSession(
+            worker,
+            [],
+            env_index=self.env_index,
+            progress_timeout=self._timeouts.progress,
+            kill_grace=self._timeouts.kill_grace,
+            health_check=self._health_check,
+        )
+        self._session = session
         try:
             episode_seed = int(self.np_random.integers(2**63 - 1))
             for ctx in self._solvers.values():
@@ -439,33 +470,17 @@ class Adapter(gym.Env):
                 spec = self._hook.gymprecice_launch_solver(solver=ctx)
                 if spec is None:
                     raise CaseError(f"{ctx.describe()}: no installed plugin launches this kind")
-                processes.append(
+                session.solvers.append(
                     SolverProcess.start(ctx.name, spec, env_index=self.env_index, registry=registry)
                 )
-            self._session = CouplingSession(
-                worker,
-                processes,
-                env_index=self.env_index,
-                progress_timeout=self._timeouts.progress,
-                kill_grace=self._timeouts.kill_grace,
-                health_check=self._health_check,
-            )
             self._schedule.start(self._initial_action())
             initial = self._collect_write(self._schedule.current)
-            state = self._session.initialize(self._init_request(initial), self._timeouts.reset)
+            state = session.initialize(self._init_request(initial), self._timeouts.reset)
         except BaseException:
-            if self._session is not None:
-                self._session.kill()
-            else:
-                worker.kill()
-                for process in processes:
-                    process.terminate(self._timeouts.kill_grace)
-            self._session = None
+            self._end_episode(abort=True)
             raise
         self._episode_active = True
         self._episode_over = False
-        _LIVE_ENVS.add(self)
-        _clean_up_on_termination_signals()
         self._apply(state)
         obs = self._get_observation(self._last_read, self.read_var_list)
         info = self._info(state, {"reset_s": time.perf_counter() - started})
@@ -479,6 +494,7 @@ class Adapter(gym.Env):
                 )
             raise gym.error.ResetNeeded("call reset() before step()")
         started = time.perf_counter()
+        action = self._checked_action(action)
         windows = self._windows_left()
         writes = [self._collect_write(value) for value in self._schedule.spread(action, windows)]
         env_s = time.perf_counter() - started
@@ -486,8 +502,9 @@ class Adapter(gym.Env):
         try:
             state = self._session.advance(writes, self._timeouts.step)
         except BaseException:
-            self._session = None
-            self._episode_active = False
+            # A solver error, Ctrl-C, or SystemExit from the user's own signal handler: the
+            # episode cannot go on, and nothing of it may outlive this env.
+            self._end_episode(abort=True)
             raise
         wait_s = time.perf_counter() - waited
         self._apply(state)
@@ -515,19 +532,34 @@ class Adapter(gym.Env):
         return obs, reward, terminated, truncated, info
 
     def close(self) -> None:
-        """End everything this env started; safe to call any number of times."""
-        if self._closed:
+        """End everything this env started; safe to call any number of times.
+
+        A call made while another one waits out the kill grace (a SIGTERM handler, a
+        second Ctrl-C) does not return early: it kills what is left at once. Whatever the
+        pid registry still records (a solver started an instant before an interrupt) is
+        killed last. ``reset()`` after ``close()`` reopens the env.
+        """
+        if self._closed and self._session is None:
             return
         self._closed = True
-        _LIVE_ENVS.discard(self)
-        self._end_episode(abort=True)
-        self._close_readers()
-        self._close_external_resources()
+        try:
+            self._end_episode(abort=True)
+            self._close_readers()
+            self._close_external_resources()
+        finally:
+            self._kill_recorded()
+            _LIVE_ENVS.discard(self)
+            if self._claim is not None:
+                self._claim.release()
+                self._claim = None
 
     def __del__(self) -> None:
         try:
             if not getattr(self, "_closed", True):
                 self._end_episode(abort=True)
+            claim = getattr(self, "_claim", None)
+            if claim is not None:
+                claim.release()
         except Exception:
             pass
 
@@ -601,11 +633,59 @@ class Adapter(gym.Env):
         self._last_read = DataDict({by_key[key]: value for key, value in state.read.items()})
 
     def _windows_left(self) -> int:
+        """Windows the next step spans: all of them, or what is left until the end time.
+
+        A last partial window counts as one (preCICE shortens it); a remainder below a
+        millionth of a window is rounding noise in ``time``, not a window.
+        """
         n = self._schedule.windows
         if self.end_time is None or not self.dt:
             return n
-        left = round((self.end_time - self.time) / self.dt)
+        left = math.ceil((self.end_time - self.time) / self.dt - 1e-6)
         return max(1, min(n, left))
+
+    def _checked_action(self, action: Any) -> Any:
+        """Refuse an action the action space cannot hold; clip one outside its bounds.
+
+        A wrong shape would be spread and written as something else, and one NaN makes
+        every later observation NaN, so both raise ``ValueError``. Values outside a Box's
+        bounds are clipped to them, as Gymnasium's ``ClipAction`` does, and the first
+        clipping of the env is logged.
+        """
+        space = self.action_space
+        if not isinstance(space, gym.spaces.Box):
+            return action
+        try:
+            values = np.asarray(action, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"env {self.env_index}: the action {action!r} is not numeric; the action space "
+                f"is {space}"
+            ) from None
+        if values.shape != space.shape:
+            raise ValueError(
+                f"env {self.env_index}: the action has shape {values.shape}, but the action "
+                f"space {space} expects shape {space.shape}"
+            )
+        if not np.all(np.isfinite(values)):
+            raise ValueError(
+                f"env {self.env_index}: the action {values.tolist()} is not finite (NaN or "
+                "infinity); check the policy's output"
+            )
+        clipped = np.clip(values, space.low, space.high)
+        if np.array_equal(clipped, values):
+            return action
+        if not self._clipping_reported:
+            self._clipping_reported = True
+            log.warning(
+                "env %d: action %s is outside the action space's bounds [%s, %s] and was "
+                "clipped (reported once per env)",
+                self.env_index,
+                values.tolist(),
+                space.low.tolist(),
+                space.high.tolist(),
+            )
+        return clipped.astype(space.dtype)
 
     def _info(self, state: CouplingState, timing: dict[str, float]) -> dict[str, Any]:
         return {
@@ -622,14 +702,49 @@ class Adapter(gym.Env):
         return self._hook.gymprecice_check_solver(solver=ctx, log_text=process.log_tail(200))
 
     def _end_episode(self, *, abort: bool) -> None:
-        session, self._session = self._session, None
+        """Kill (or finish) the running session; it stays reachable until it is dead.
+
+        A signal handler that calls :meth:`close` during the kill grace must still find
+        the session, and an exception out of the finish (a user handler raising
+        ``SystemExit``) must not drop it alive.
+        """
         self._episode_active = False
+        session = self._session
         if session is None:
             return
-        if abort:
+        try:
+            if abort:
+                session.kill()
+            else:
+                session.finish(self._timeouts.finalize)
+        except BaseException:
             session.kill()
-        else:
-            session.finish(self._timeouts.finalize)
+            raise
+        finally:
+            if self._session is session:
+                self._session = None
+
+    def _kill_recorded(self) -> None:
+        """Kill what this env's pid registry still records (normally nothing)."""
+        if self._run is None:
+            return
+        try:
+            kill_recorded_groups(self._run.root, grace=self._timeouts.kill_grace)
+        except OSError as exc:
+            log.debug("env %d: could not read its pid registry: %s", self.env_index, exc)
+
+    def _runs_base(self) -> Path:
+        return env_root(self.config, 0, self._run_root).parent
+
+    def _claim_index(self) -> int:
+        """The lowest env index under the run root that no live env holds.
+
+        Envs made without ``idx`` (``gym.make_vec`` in sync mode gives none) would
+        otherwise all run in ``env_0`` and break each other's coupling. The claim is a
+        lock file held until :meth:`close`, so it also holds across processes.
+        """
+        self._claim = claim_env_index(self._runs_base())
+        return self._claim.index
 
     def _close_readers(self) -> None:
         readers, self._readers = list(self._readers.values()), {}

@@ -9,12 +9,17 @@ path, so they pick up the env's copy without being told.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
+import itertools
+import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 from gymprecice.config import GymPreciceConfig
 from gymprecice.errors import ConfigError
+from gymprecice.pidregistry import kill_recorded_groups
 from gymprecice.precice_xml import write_with_exchange_directory
 
 MARKER = ".gymprecice"
@@ -46,6 +51,44 @@ def env_root(config: GymPreciceConfig, env_index: int, run_root: str | Path | No
     return (base / f"env_{env_index}").resolve()
 
 
+class EnvIndexClaim:
+    """An env index held by one live env: an ``flock`` on ``<run_root>/.env_<i>.lock``."""
+
+    def __init__(self, index: int, fd: int) -> None:
+        self.index = index
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        if self._fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._fd)  # closing the descriptor drops the lock
+            self._fd = None
+
+    def __del__(self) -> None:
+        self.release()
+
+
+def claim_env_index(base: Path, prefer: int | None = None) -> EnvIndexClaim:
+    """Hold the lowest free env index under the run root ``base`` (``prefer`` first).
+
+    The lock is per open file, so two envs of one process exclude each other as well as
+    envs of other processes; it vanishes with the process that held it.
+    """
+    base.mkdir(parents=True, exist_ok=True)
+    candidates = (
+        itertools.count() if prefer is None else itertools.chain([prefer], itertools.count())
+    )
+    for index in candidates:
+        fd = os.open(base / f".env_{index}.lock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            continue
+        return EnvIndexClaim(index, fd)
+    raise AssertionError("unreachable")
+
+
 def create_run_directory(
     config: GymPreciceConfig, env_index: int, run_root: str | Path | None = None
 ) -> RunDirectory:
@@ -53,7 +96,9 @@ def create_run_directory(
 
     A previous run directory of the same env is replaced only when it carries gymprecice's
     marker; any other existing directory is left alone and reported, so a mistyped
-    ``run_root`` can never delete a user's data.
+    ``run_root`` can never delete a user's data. What the old directory's pid registry
+    still records (solvers of an env process that died) is killed before the registry is
+    deleted with it; otherwise they would run on, unrecorded, in a deleted directory.
     """
     root = env_root(config, env_index, run_root)
     case = config.case_dir
@@ -68,6 +113,7 @@ def create_run_directory(
                 f"{root} exists and was not made by gymprecice; refusing to replace it. "
                 "Move it away or set environment.run_root to another directory."
             )
+        kill_recorded_groups(root, grace=config.model.timeouts.kill_grace)
         shutil.rmtree(root)
     root.parent.mkdir(parents=True, exist_ok=True)
     ignore_below_case = _ignored_run_roots(case, root)
