@@ -34,10 +34,11 @@ def test_commands_are_added_to_gymprecice():
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     assert set(COMMANDS) <= set(sub.choices)
     args = parser.parse_args(["train", "jet-cylinder"])
-    assert (args.n_envs, args.timesteps, args.n_steps, args.seed) == (1, 100_000, 80, 0)
+    assert (args.n_envs, args.timesteps, args.seed, args.algo) == (1, 100_000, 0, "ppo")
+    assert args.n_steps is None  # the algorithm's default, unless typed
     assert args.require_solvers is False and args.double is False
     args = parser.parse_args(["evaluate", "jet-cylinder"])
-    assert args.default_episode_time == 10.0 and args.episode_time is None
+    assert args.rollout is True and args.episode_time is None
 
 
 def test_env_names_and_ids_resolve():
@@ -193,3 +194,165 @@ def test_manifest_hashes_configuration_not_results(tmp_path):
     assert data["packages"]["pyprecice"] is None or isinstance(data["packages"]["pyprecice"], str)
     assert manifest.read_manifest(tmp_path / "out") == data
     assert not list(Path(tmp_path / "out").glob("*.tmp"))
+
+
+# -- help, one-line errors -------------------------------------------------------------------
+
+
+def _help(command: str) -> str:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[command].format_help()
+
+
+def test_every_help_shows_defaults_and_a_description():
+    text = " ".join(_help("train").split())
+    for default in ("(default: 100000)", "(default: 1)", "(default: ppo)", "(default: 5)"):
+        assert default in text, default
+    assert "n_steps 80" in text and "about 21 hours" in text
+    for command in ("evaluate", "baseline", "open-loop"):
+        text = " ".join(_help(command).split())
+        assert "(default: 1)" in text  # --episodes
+        assert "quickstart 2 s" in text and "jet-cylinder 10 s" in text
+        usage, _, _rest = text.partition("positional arguments")
+        assert len(usage.split("]")[-1].strip()) > 40, command  # a description
+
+
+def test_rollouts_default_to_the_environments_own_horizon(tmp_path):
+    parser = build_parser()
+    out = tmp_path / "out"
+    quick = parser.parse_args(["baseline", "quickstart", "--double"])
+    jet = parser.parse_args(["baseline", "jet-cylinder", "--double"])
+    assert train.build_env_kwargs(quick, ENVIRONMENTS["quickstart"], out)["episode_time"] == 2.0
+    assert train.build_env_kwargs(jet, ENVIRONMENTS["jet-cylinder"], out)["episode_time"] == 10.0
+    trained = parser.parse_args(["train", "quickstart", "--double"])
+    assert "episode_time" not in train.build_env_kwargs(trained, ENVIRONMENTS["quickstart"], out)
+
+
+def test_without_solvers_and_without_double_one_line_suggests_double(tmp_path, monkeypatch, capsys):
+    report = {"ok": False, "checks": [_check("pyprecice", False, required=True)]}
+    monkeypatch.setattr("gymprecice.cli.doctor_report", lambda: report)
+    monkeypatch.chdir(tmp_path)
+    for command in ("train", "baseline"):
+        assert main([command, "quickstart"]) == 1
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1, err
+        assert "add --double" in err and "pyprecice" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_env_kwargs_are_one_line(tmp_path):
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gymprecice",
+            "baseline",
+            "quickstart",
+            "--double",
+            "--env-kwargs",
+            '{"no_such_option": 1}',
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 1
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert "no_such_option" in lines[0] and "--env-kwargs" in lines[0]
+
+
+def test_cuda_without_cuda_is_refused(tmp_path, monkeypatch):
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(
+        SystemExit, match=r"--device cuda: .* sees no CUDA device; use --device cpu"
+    ):
+        main(["train", "quickstart", "--double", "--device", "cuda"])
+    assert not (tmp_path / "runs").exists()
+
+
+def test_batch_size_larger_than_the_rollout_is_clamped_with_a_warning(capsys):
+    params = {"algo": "ppo", "n_steps": 16, "batch_size": 80}
+    notes = train._adjust_batch_size(params, 2)
+    assert params["batch_size"] == 32
+    assert notes and "--batch-size 80" in notes[0] and "training with batch size 32" in notes[0]
+    assert "warning: --batch-size 80" in capsys.readouterr().err
+    assert train._adjust_batch_size({"algo": "ppo", "n_steps": 16, "batch_size": 32}, 2) == []
+
+
+# -- hyperparameters -------------------------------------------------------------------------
+
+
+def test_hyperparameters_resolve_defaults_then_file_then_flags(tmp_path):
+    from gymprecice_tutorials import hyperparams as hp
+
+    path = tmp_path / "h.yaml"
+    path.write_text("gymprecice/Quickstart-v0:\n  n_steps: 40\n  gamma: 0.9\n  policy: MlpPolicy\n")
+    from_file = hp.load_hyperparams_file(path, "ppo", ("gymprecice/Quickstart-v0",))
+    params = hp.resolve("ppo", from_file, {"gamma": 0.95, "n_steps": None})
+    assert (params["n_steps"], params["gamma"], params["n_epochs"]) == (40, 0.95, 10)
+    kwargs = hp.model_kwargs(params)
+    assert kwargs["policy_kwargs"] == {"net_arch": {"pi": [512, 512], "vf": [512, 512]}}
+    assert "net" not in kwargs and "normalize" not in kwargs
+    changed = hp.changed_on_resume(params, {**params, "learning_rate": 1e-3})
+    assert changed == ["--learning-rate is 0.001 now but 0.0003 in the run being resumed"]
+    path.write_text("clip_rangee: 0.1\n")
+    with pytest.raises(
+        SystemExit, match=r"--hyperparams .*h\.yaml: PPO has no hyperparameter 'clip_rangee'"
+    ):
+        hp.load_hyperparams_file(path, "ppo", ())
+    with pytest.raises(SystemExit, match="--n-steps is a PPO setting"):
+        hp.resolve("sac", {}, {"n_steps": 8})
+
+
+# -- checkpoints -----------------------------------------------------------------------------
+
+
+def test_only_the_newest_checkpoints_and_the_best_are_kept(tmp_path):
+    from gymprecice_tutorials.callbacks import BEST_NAME, prune_checkpoints
+
+    for steps in (10, 20, 30, 40, 50):
+        (tmp_path / f"ppo_{steps}_steps.zip").write_text("m")
+        (tmp_path / f"ppo_vecnormalize_{steps}_steps.pkl").write_text("s")
+    (tmp_path / BEST_NAME).write_text(json.dumps({"name": "ppo_20_steps.zip"}))
+    deleted = prune_checkpoints(tmp_path, "ppo", keep=2)
+    assert sorted(p.name for p in deleted) == ["ppo_10_steps.zip", "ppo_30_steps.zip"]
+    assert sorted(p.name for p in tmp_path.glob("ppo_*_steps.zip")) == [
+        "ppo_20_steps.zip",
+        "ppo_40_steps.zip",
+        "ppo_50_steps.zip",
+    ]
+    assert not (tmp_path / "ppo_vecnormalize_10_steps.pkl").exists()
+
+
+# -- manifest and imports --------------------------------------------------------------------
+
+
+def test_manifest_lists_pyprecice_only_when_importable(tmp_path):
+    solvers = {"ok": False, "checks": [_check("pyprecice", False, required=True)]}
+    path = manifest.write_manifest(tmp_path, command="baseline", argv=["x"], solvers=solvers)
+    data = json.loads(path.read_text())
+    assert data["packages"]["pyprecice"] is None
+    assert data["source"]["identified_by"] in ("git", "packages")
+
+
+def test_plugin_and_commands_do_not_import_each_other():
+    code = (
+        "import sys, importlib; importlib.import_module(sys.argv[1]); "
+        "print(sorted(m for m in sys.modules if m.startswith('gymprecice_tutorials')))"
+    )
+    for module, absent in (
+        ("gymprecice_tutorials.plugin", "gymprecice_tutorials.cli"),
+        ("gymprecice_tutorials.cli", "gymprecice_tutorials.plugin"),
+        ("gymprecice_tutorials.train", "gymprecice_tutorials.plugin"),
+    ):
+        proc = subprocess.run(
+            [sys.executable, "-c", code, module], capture_output=True, text=True, timeout=120
+        )
+        assert proc.returncode == 0, proc.stderr
+        assert absent not in proc.stdout, (module, proc.stdout)

@@ -25,13 +25,13 @@ from gymprecice.config import load_config
 from gymprecice.precice_xml import load_precice_config
 from gymprecice_openfoam.outputs import ForceCoeffsReader, ProbesReader
 from gymprecice_tutorials import fake_flow, recipes
+from gymprecice_tutorials.environments import ENVIRONMENTS
 from gymprecice_tutorials.jet_cylinder.environment import (
     MAX_FLOW_RATE,
     JetCylinderEnv,
     materialise_case,
 )
 from gymprecice_tutorials.jet_cylinder.geometry import patch_geometry
-from gymprecice_tutorials.environments import ENVIRONMENTS
 from gymprecice_tutorials.rotating_cylinder.environment import RotatingCylinderEnv
 
 CYLINDER_IDS = [

@@ -241,14 +241,14 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
     except KeyError as exc:
         print(f"gymprecice {command}: {exc.args[0]}", file=sys.stderr)
         return 2
+    out = (args.out or default_out(env_info, command)).resolve()
+    kwargs = build_env_kwargs(args, env_info, out)
+    baseline = _read_baseline(args.baseline) if getattr(args, "baseline", None) else None
+    model_path = _model_path(args, env_info) if command == "evaluate" else None
     if not args.double:
         status = require_solvers(env_info, command, verbose=args.require_solvers)
         if status:
             return status
-    baseline = _read_baseline(args.baseline) if getattr(args, "baseline", None) else None
-    model_path = _model_path(args, env_info) if command == "evaluate" else None
-    out = (args.out or default_out(env_info, command)).resolve()
-    kwargs = build_env_kwargs(args, env_info, out)
     # The policy acts in [-1, 1] (training rescales); the fixed controllers act in the
     # env's own units, so that "zero" means jets closed.
     env = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=command == "evaluate")

@@ -450,6 +450,9 @@ def train_command(args: argparse.Namespace) -> int:
     except KeyError as exc:
         print(f"gymprecice train: {exc.args[0]}", file=sys.stderr)
         return 2
+    out = (args.out or default_out(env, "train")).resolve()
+    build_env_kwargs(args, env, out)  # usage errors first: they cost nothing to find
+    check_device(args.device)
     solvers = solver_versions()
     if not args.double:
         status = require_solvers(
@@ -457,8 +460,6 @@ def train_command(args: argparse.Namespace) -> int:
         )
         if status:
             return status
-    check_device(args.device)
-    out = (args.out or default_out(env, "train")).resolve()
     params = _params(args, env, out)
     resume = None if args.fresh else newest_checkpoint(out / "checkpoints")
     if resume is not None:
