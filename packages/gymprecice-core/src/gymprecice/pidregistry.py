@@ -11,7 +11,8 @@ by the time it is read, so no signal is sent on a number alone. Each process is 
 only when it is proven to be ours, and through a pidfd opened *before* the proof, so the
 signal reaches the process that was checked and no later holder of its number:
 
-* the leader, when its start time equals the recorded one;
+* the leader, when its start time equals the recorded one (and its environment, where
+  readable, holds the recorded token: start times tick only every 10 ms);
 * any member of the group while the proven leader still exists (alive or an unreaped
   zombie): a group number cannot be reused while its leader holds the pid;
 * any process whose environment holds the record's launch token (members left behind
@@ -110,12 +111,17 @@ def _all_pids() -> Iterator[int]:
             yield int(entry.name)
 
 
-def _carries_token(pid: int, token: str) -> bool:
+def _token_state(pid: int, token: str) -> bool | None:
+    """Whether ``pid``'s environment holds ``token`` (``None``: it cannot be read)."""
     try:
         environ = (_PROC / str(pid) / "environ").read_bytes()
     except OSError:
-        return False
+        return None
     return f"{PROCESS_TOKEN_VARIABLE}={token}".encode() in environ.split(b"\0")
+
+
+def _carries_token(pid: int, token: str) -> bool:
+    return _token_state(pid, token) is True
 
 
 def live_group_members(pgid: int) -> list[int] | None:
@@ -319,10 +325,13 @@ def proven_members(record: GroupRecord) -> list[_Handle]:
         handle = _Handle.open(record.pgid)
         if handle is not None:
             st = proc_stat(record.pgid)
+            # Start times tick every 10 ms: where the environment is readable, a token
+            # recorded with the group must be there too.
             if (
                 st is not None
                 and st.pgrp == record.pgid
                 and st.starttime == record.starttime
+                and (record.token is None or _token_state(record.pgid, record.token) is not False)
                 and handle.exists()
             ):
                 leader = handle

@@ -452,3 +452,17 @@ class FlapSolid(Flow):
 
     def summary(self) -> dict[str, float]:
         return {"d": self.state["d"], "F": self.state["force"]}
+
+
+class ClockFlow(Flow):
+    """Writes the end time of the last step it computed, everywhere: data that names its window.
+
+    A controller that reads it can tell whether an observation was computed for the step
+    it just took, or is left over from an earlier one (stale-data tests).
+    """
+
+    def step(self, t: float, dt: float, inputs: Inputs) -> None:
+        self.state["t"] = t + dt
+
+    def output(self, data: str, mesh: str) -> np.ndarray:
+        return super().output(data, mesh) + self.state.get("t", 0.0)
