@@ -207,6 +207,13 @@ def _train_parser(sub: Any) -> None:
         help="vector env: fault-tolerant subprocesses (auto, when available), plain SB3 "
         "subprocesses, or all in this process (debugging)",
     )
+    p.add_argument(
+        "--ray",
+        metavar="auto|ADDRESS",
+        default=None,
+        help="run the envs as Ray actors on a Ray cluster (auto: the one this machine "
+        "joined); needs gymprecice-core[ray], see docs/cluster.md",
+    )
     p.add_argument("--no-progress-bar", action="store_true", help="no progress bar")
     p.add_argument(
         "--verbose",

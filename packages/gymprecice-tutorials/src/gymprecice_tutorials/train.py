@@ -108,14 +108,26 @@ def build_env_kwargs(args: argparse.Namespace, env: TutorialEnv, out: Path) -> d
     return kwargs
 
 
-def _vec_env(fns: Sequence[Callable[[], gym.Env]], kind: str, log_dir: Path) -> Any:
+def _vec_env(
+    fns: Sequence[Callable[[], gym.Env]], kind: str, log_dir: Path, ray: str | None = None
+) -> Any:
     """The vector env of kind ``kind`` (see ``gymprecice train --vec-env``).
 
     The resilient env gets no reset deadline of its own: an env's first reset includes
     the case's pre-run (minutes to hours of CFD), which has its own timeout in the
-    solver plugin, and the Adapter's ``timeouts`` already catch hung couplings.
+    solver plugin, and the Adapter's ``timeouts`` already catch hung couplings. With
+    ``ray`` (``--ray auto|ADDRESS``) its envs are Ray actors on that cluster.
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    if ray is not None:
+        from gymprecice.sb3 import ResilientSubprocVecEnv
+        from gymprecice.vector.ray import RayBackend
+
+        backend = RayBackend(ray)
+        return ResilientSubprocVecEnv(
+            list(fns), reset_timeout=None, log_dir=str(log_dir), backend=backend
+        )
 
     if kind == "dummy":
         return DummyVecEnv(list(fns))
@@ -174,6 +186,7 @@ def train(
     n_eval_episodes: int = 5,
     resume: Path | None = None,
     vec_env: str = "auto",
+    ray: str | None = None,
     progress_bar: bool = True,
     device: str = "cpu",
     seed: int = 0,
@@ -211,7 +224,7 @@ def train(
         )
         for i in range(n_envs)
     ]
-    base = _vec_env(fns, vec_env, out / "workers")
+    base = _vec_env(fns, vec_env, out / "workers", ray)
     vec: Any = base
     evaluator: Any = None
     try:
@@ -521,6 +534,7 @@ def train_command(args: argparse.Namespace) -> int:
         n_eval_episodes=args.n_eval_episodes,
         resume=resume[0] if resume else None,
         vec_env=args.vec_env,
+        ray=getattr(args, "ray", None),
         progress_bar=not args.no_progress_bar,
         device=args.device,
         seed=args.seed,
