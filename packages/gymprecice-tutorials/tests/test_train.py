@@ -519,3 +519,34 @@ def test_sac_with_a_hyperparameter_file_normalize_and_evaluation(tmp_path):
         assert applied == pytest.approx(float(action[0][0]) * MAX_FLOW_RATE, rel=1e-4)
     finally:
         venv.close()
+
+
+def test_plot_writes_pdf_and_svg_with_labels_units_bounds_and_mean_cd(recorded):
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    common = ["plot", "evaluate", "open-loop", "--baseline", "baseline"]
+    out = _ok(_cli(root, *common, "--format", "pdf", "--out", "pdf"))
+    assert {Path(line).name for line in out.split()} >= {"actions.pdf", "coefficients.pdf"}
+    assert (root / "pdf" / "actions.pdf").read_bytes()[:5] == b"%PDF-"
+    _ok(_cli(root, *common, "--format", "svg", "--labels", "PPO,sine", "--out", "svg"))
+    actions = (root / "svg" / "actions.svg").read_text()
+    coefficients = (root / "svg" / "coefficients.svg").read_text()
+    # labels, units, applied scheme, the episode drawn
+    for text in ("PPO", "sine", "m³/s", "(ramp)", "episode 0"):
+        assert text in actions, text
+    assert "mean Cd" in coefficients and "% vs baseline" in coefficients
+    _ok(_cli(root, "plot", "evaluate", "--episode", "1", "--format", "svg", "--out", "ep1"))
+    assert "episode 1" in (root / "ep1" / "actions.svg").read_text()
+    proc = _cli(root, "plot", "baseline", "--episode", "1")
+    assert proc.returncode == 1 and "--episode 1: the run has episodes 0" in proc.stderr
+    proc = _cli(root, *common, "--labels", "only-one")
+    assert proc.returncode == 2 and "one per RUN" in proc.stderr
+
+
+def test_applied_action_ramps_from_the_previous_action():
+    t, v = plots.applied_action(
+        np.array([0.0, 1.0]), np.array([1.0, 2.0]), np.array([1.0, -1.0]), "ramp", 2
+    )
+    assert np.allclose(t, [0.0, 0.5, 1.0, 1.5, 2.0])
+    assert np.allclose(v, [0.0, 0.5, 1.0, 0.0, -1.0])
+    t, v = plots.applied_action(np.array([0.0]), np.array([1.0]), np.array([2.0]), "hold", 2)
+    assert np.allclose(v, [2.0, 2.0, 2.0])

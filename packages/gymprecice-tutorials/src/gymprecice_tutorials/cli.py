@@ -305,6 +305,19 @@ def _plot_parser(sub: Any) -> None:
     p.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="output directories")
     p.add_argument("--baseline", type=Path, help="a baseline run to compare Cd/Cl with")
     p.add_argument("--out", type=Path, help="where figures go (None: <first RUN>/plots)")
+    p.add_argument("--format", choices=("png", "pdf", "svg"), default="png", help="file format")
+    p.add_argument("--dpi", type=_positive_int, default=120, help="resolution of PNGs")
+    p.add_argument(
+        "--labels",
+        default=None,
+        help="legend names, one per RUN, comma-separated (None: the directory names)",
+    )
+    p.add_argument(
+        "--episode",
+        type=int,
+        default=None,
+        help="episode of the rollouts to draw (None: each run's first); titles say which",
+    )
     p.set_defaults(func=_plot)
 
 

@@ -30,6 +30,10 @@ class TutorialEnv:
     #: ``evaluate`` / ``baseline`` / ``open-loop``'s default simulated seconds per episode:
     #: longer than a training episode, to show that control holds (``None``: the case's)
     rollout_time: float | None = 10.0
+    #: the action in the env's own units, as figures label it, and its bound (``None``:
+    #: none to draw); the jets' flow rate and the cylinder's spin are symmetric boxes
+    action_unit: str = "m³/s"
+    action_bound: float | None = 2.5e-4
 
 
 ENVIRONMENTS: dict[str, TutorialEnv] = {
@@ -46,6 +50,8 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "gymprecice/RotatingCylinder-v0",
             "gymprecice_tutorials.rotating_cylinder.environment:RotatingCylinderEnv",
             "a rotating cylinder at Re = 100, the action is its angular velocity",
+            action_unit="rad/s",
+            action_bound=5.0,
         ),
         TutorialEnv(
             "quickstart",
@@ -63,6 +69,8 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             recipe=False,
             open_loop_frequency=0.5,
             rollout_time=None,
+            action_unit="m",
+            action_bound=None,
         ),
     )
 }

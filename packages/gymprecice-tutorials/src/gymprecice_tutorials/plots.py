@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -130,13 +132,88 @@ def _pyplot() -> Any:
     import matplotlib
 
     matplotlib.use("Agg", force=True)
+    # text stays text in SVG and PDF: editable and searchable in a paper's figures
+    matplotlib.rcParams.update({"svg.fonttype": "none", "pdf.fonttype": 42})
     import matplotlib.pyplot as plt
 
     return plt
 
 
+@dataclass
+class Style:
+    """How figures are written: ``gymprecice plot --format/--dpi/--labels/--episode``."""
+
+    fmt: str = "png"
+    dpi: int = 120
+    labels: dict[Path, str] = field(default_factory=dict)
+    #: the episode drawn of rollout runs (``None``: the first each run has)
+    episode: int | None = None
+
+
+STYLE = Style()
+
+
 def _label(run: Path) -> str:
+    given = STYLE.labels.get(run.resolve())
+    if given:
+        return given
     return f"{run.parent.name}/{run.name}" if run.parent.name else run.name
+
+
+def _episode_mask(episodes: np.ndarray) -> tuple[np.ndarray, int]:
+    """Rows of the episode to draw and its number (``--episode``, else the first)."""
+    wanted = int(episodes.min()) if STYLE.episode is None else STYLE.episode
+    mask = episodes == wanted
+    if not mask.any():
+        raise SystemExit(
+            f"gymprecice plot: --episode {wanted}: the run has episodes "
+            f"{', '.join(str(int(e)) for e in np.unique(episodes))}"
+        )
+    return mask, wanted
+
+
+def _run_env(run: Path) -> Any:
+    """The tutorial environment a run was made with (from its manifest), if known."""
+    from gymprecice_tutorials.environments import find_environment
+
+    try:
+        manifest = json.loads((run / "manifest.json").read_text())
+        return find_environment(manifest["settings"]["env_id"])
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def _action_scheme(run: Path) -> tuple[str, int]:
+    """The case's action scheme and windows per action (``hold``, 1 when unknown)."""
+    try:
+        manifest = json.loads((run / "manifest.json").read_text())
+        config = json.loads((Path(manifest["case_dir"]) / "gymprecice-config.json").read_text())
+        actions = config.get("actions", {})
+        return str(actions.get("scheme", "hold")), int(actions.get("windows", 1))
+    except (OSError, ValueError, KeyError, TypeError):
+        return "hold", 1
+
+
+def applied_action(
+    start: np.ndarray, end: np.ndarray, values: np.ndarray, scheme: str, windows: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Time and value of an action signal as the env applied it, window by window.
+
+    Core's :class:`~gymprecice.actions.ActionSchedule` spreads each action over the step's
+    preCICE windows (``ramp``: a line from the previous action; ``hold``: a step). The
+    episode starts from rest (zero).
+    """
+    from gymprecice.actions import ActionSchedule
+
+    schedule = ActionSchedule(scheme=scheme, windows=max(1, windows))
+    schedule.start(np.zeros(1))
+    times, out = [float(start[0])], [0.0 if scheme != "hold" else float(values[0])]
+    for t0, t1, value in zip(start, end, values):
+        per_window = schedule.spread(np.array([value]))
+        edges = np.linspace(t0, t1, len(per_window) + 1)[1:]
+        times += [float(t) for t in edges]
+        out += [float(np.asarray(v).reshape(-1)[0]) for v in per_window]
+    return np.array(times), np.array(out)
 
 
 def plot_reward(runs: Sequence[Path], target: Path) -> Path | None:
@@ -147,6 +224,7 @@ def plot_reward(runs: Sequence[Path], target: Path) -> Path | None:
         return None
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
+    smoothed: list[tuple[np.ndarray, np.ndarray]] = []
     for k, (run, curve) in enumerate(curves):
         colour = f"C{k}"
         if curve["source"] == "monitor":
@@ -159,43 +237,68 @@ def plot_reward(runs: Sequence[Path], target: Path) -> Path | None:
             means = np.bincount(inverse, weights=returns) / np.bincount(inverse)
             window = max(1, min(len(unique) // 5, 20))
             smooth = np.convolve(means, np.ones(window) / window, mode="valid")
-            ax.plot(unique[window - 1 :], smooth, color=colour, lw=2, label=_label(run))
+            label = f"{_label(run)} (running mean of {window} episode ends)"
+            ax.plot(unique[window - 1 :], smooth, color=colour, lw=2, label=label)
+            smoothed.append((unique[window - 1 :], smooth))
         else:
             s, r = curve["per_env"][0]
             ax.plot(s, r, color=colour, lw=2, label=f"{_label(run)} (TensorBoard)")
+    if len(smoothed) >= 2:  # several seeds: their mean and spread on a common axis
+        lo = max(s[0] for s, _ in smoothed)
+        hi = min(s[-1] for s, _ in smoothed)
+        if hi > lo:
+            grid = np.linspace(lo, hi, 200)
+            stack = np.array([np.interp(grid, s, v) for s, v in smoothed])
+            mean, std = stack.mean(axis=0), stack.std(axis=0)
+            ax.plot(grid, mean, "k", lw=1.5, label=f"mean of {len(smoothed)} runs")
+            ax.fill_between(grid, mean - std, mean + std, color="k", alpha=0.15, label="± std")
     ax.set_xlabel("environment steps (actions)")
-    ax.set_ylabel("episode return")
+    ax.set_ylabel("episode return (reward, dimensionless)")
     ax.set_title("Training")
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize="small")
-    return _save(fig, plt, target / "reward.png")
+    return _save(fig, plt, target / "reward")
 
 
 def plot_actions(runs: Sequence[Path], target: Path, baseline: Path | None = None) -> Path | None:
-    """``actions.png``: actions against time of every rollout run."""
+    """``actions``: each rollout's action as applied, one panel per unit, bounds dotted."""
     series = [(run, load_history(run)) for run in [*runs, *([baseline] if baseline else [])]]
     series = [(run, h) for run, h in series if h is not None]
     if not series:
         return None
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7, 3.5))
+    by_unit: dict[str, list[tuple[int, Path, dict[str, np.ndarray]]]] = {}
     for k, (run, history) in enumerate(series):
-        keys = sorted(key for key in history if key.startswith("action_"))
-        first = history["episode"] == history["episode"].min()
-        start = history.get("start", history["time"])[first]
-        # each action holds from its start to the next one's: a step drawn "post", closed
-        # at the end of the last action
-        times = np.append(start, history["time"][first][-1:])
-        for key in keys:
-            values = history[key][first]
-            label = _label(run) + (f" {key}" if len(keys) > 1 else "")
-            ax.step(times, np.append(values, values[-1:]), where="post", color=f"C{k}", label=label)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("action")
-    ax.set_title("Actions")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
-    return _save(fig, plt, target / "actions.png")
+        env = _run_env(run)
+        by_unit.setdefault(env.action_unit if env else "", []).append((k, run, history))
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(by_unit), 1, figsize=(7, 3.5 * len(by_unit)), squeeze=False)
+    episodes = set()
+    for ax, (unit, members) in zip(axes[:, 0], by_unit.items()):
+        bounds = set()
+        for k, run, history in members:
+            env = _run_env(run)
+            if env is not None and env.action_bound:
+                bounds.add(env.action_bound)
+            mask, episode = _episode_mask(history["episode"])
+            episodes.add(episode)
+            scheme, windows = _action_scheme(run)
+            start = history.get("start", history["time"])[mask]
+            keys = sorted(key for key in history if key.startswith("action_"))
+            for key in keys:
+                t, v = applied_action(
+                    start, history["time"][mask], history[key][mask], scheme, windows
+                )
+                label = _label(run) + (f" {key}" if len(keys) > 1 else "") + f" ({scheme})"
+                ax.plot(t, v, color=f"C{k}", label=label)
+        for bound in sorted(bounds):
+            for sign in (-1, 1):
+                ax.axhline(sign * bound, color="grey", ls=":", lw=1)
+        ax.set_ylabel(f"action ({unit})" if unit else "action")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize="small")
+    axes[-1, 0].set_xlabel("time (s)")
+    axes[0, 0].set_title(f"Actions as applied (episode {', '.join(map(str, sorted(episodes)))})")
+    return _save(fig, plt, target / "actions")
 
 
 def plot_coefficients(
@@ -209,31 +312,47 @@ def plot_coefficients(
         return None
     plt = _pyplot()
     fig, (ax_d, ax_l) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
+    ref_cd = None
+    episodes = set()
     if reference is not None:
         assert baseline is not None
-        first = reference["episode"] == reference["episode"].min()
-        ax_d.plot(reference["time"][first], reference["Cd"][first], "k--", lw=1, label="baseline")
+        first, episode = _episode_mask(reference["episode"])
+        episodes.add(episode)
+        ref_cd = float(np.mean(reference["Cd"][first]))
+        label = f"baseline (mean Cd {ref_cd:.4f})"
+        ax_d.plot(reference["time"][first], reference["Cd"][first], "k--", lw=1, label=label)
         ax_l.plot(reference["time"][first], reference["Cl"][first], "k--", lw=1, label="baseline")
     for k, (run, coeffs) in enumerate(series):
         if baseline is not None and run.resolve() == baseline.resolve():
             continue
-        first = coeffs["episode"] == coeffs["episode"].min()
-        ax_d.plot(coeffs["time"][first], coeffs["Cd"][first], color=f"C{k}", label=_label(run))
+        first, episode = _episode_mask(coeffs["episode"])
+        episodes.add(episode)
+        mean_cd = float(np.mean(coeffs["Cd"][first]))
+        note = f"mean Cd {mean_cd:.4f}"
+        if ref_cd:
+            note += f", {100 * (mean_cd - ref_cd) / abs(ref_cd):+.1f} % vs baseline"
+        ax_d.plot(
+            coeffs["time"][first],
+            coeffs["Cd"][first],
+            color=f"C{k}",
+            label=f"{_label(run)} ({note})",
+        )
         ax_l.plot(coeffs["time"][first], coeffs["Cl"][first], color=f"C{k}", label=_label(run))
-    ax_d.set_ylabel("drag coefficient Cd")
-    ax_l.set_ylabel("lift coefficient Cl")
+    ax_d.set_ylabel("drag coefficient Cd (-)")
+    ax_l.set_ylabel("lift coefficient Cl (-)")
     ax_l.set_xlabel("time (s)")
-    ax_d.set_title("Force coefficients")
+    ax_d.set_title(f"Force coefficients (episode {', '.join(map(str, sorted(episodes)))})")
     for ax in (ax_d, ax_l):
         ax.grid(alpha=0.3)
     ax_d.legend(loc="best", fontsize="small")
-    return _save(fig, plt, target / "coefficients.png")
+    return _save(fig, plt, target / "coefficients")
 
 
 def _save(fig: Any, plt: Any, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    path = path.with_suffix(f".{STYLE.fmt}")
+    fig.savefig(path, dpi=STYLE.dpi)
     plt.close(fig)
     return path
 
@@ -247,6 +366,16 @@ def plot_command(args: argparse.Namespace) -> int:
     if missing:
         print(f"gymprecice plot: no such run directory: {', '.join(missing)}", file=sys.stderr)
         return 1
+    labels = [s.strip() for s in (args.labels or "").split(",")] if args.labels else []
+    if labels and len(labels) != len(runs):
+        print(
+            f"gymprecice plot: --labels has {len(labels)} names for {len(runs)} runs; "
+            f"give one per RUN, comma-separated",
+            file=sys.stderr,
+        )
+        return 2
+    STYLE.fmt, STYLE.dpi, STYLE.episode = args.format, args.dpi, args.episode
+    STYLE.labels = {run.resolve(): label for run, label in zip(runs, labels)}
     target = args.out or runs[0] / "plots"
     written = [
         plot_reward(runs, target),
