@@ -26,12 +26,14 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor, wait
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 from gymprecice.core import Adapter
+from gymprecice.pidregistry import kill_recorded_groups
 from gymprecice.testing import case_config
 from gymprecice.testing.flows import fake_cylinder_geometry
 
@@ -79,6 +81,8 @@ def make_case(root: Path, library: str, windows: int) -> Path:
             "write_to": {"jet1": "Velocity", "jet2": "Velocity"},
             "read_from": {"cylinder": "Pressure"},
         },
+        # A loaded machine slows everything down; a hang must still end in an error.
+        "timeouts": {"reset": 120, "progress": 60},
     }
     (case / "gymprecice-config.json").write_text(json.dumps(config))
     return case
@@ -166,14 +170,44 @@ def _reset_once(args: tuple[str, str, int]) -> float:
     return elapsed
 
 
-def concurrent_resets(case: Path, run_root: Path, n: int) -> tuple[float, float]:
+#: the longest the concurrent resets may take, whatever the load (each reset has its own
+#: timeouts in the case's config; this bounds the pool around them)
+CONCURRENT_DEADLINE_S = 300.0
+
+
+def _reset_in_processes(jobs: list[tuple[str, str, int]]) -> list[float]:
+    """Run ``_reset_once`` for each job in its own process, with a deadline.
+
+    ``multiprocessing.Pool.map`` waits forever for the result of a worker that died (the
+    OOM killer on a loaded machine, a signal): the benchmark then hangs instead of
+    failing. ``ProcessPoolExecutor`` reports a dead worker (``BrokenProcessPool``), and
+    the wait below has a deadline.
+    """
     ctx = mp.get_context("forkserver")
-    with ctx.Pool(1) as pool:
-        one = pool.map(_reset_once, [(str(case), str(run_root / "one"), 0)])[0]
-    with ctx.Pool(n) as pool:
-        started = time.perf_counter()
-        pool.map(_reset_once, [(str(case), str(run_root / "many"), i) for i in range(n)])
-        many = time.perf_counter() - started
+    pool = ProcessPoolExecutor(len(jobs), mp_context=ctx)
+    try:
+        futures = [pool.submit(_reset_once, job) for job in jobs]
+        _, pending = wait(futures, timeout=CONCURRENT_DEADLINE_S)
+        if pending:
+            raise SystemExit(
+                f"bench_core: {len(pending)} of {len(jobs)} concurrent resets did not finish "
+                f"within {CONCURRENT_DEADLINE_S:g} s"
+            )
+        return [f.result() for f in futures]
+    finally:
+        for process in list(getattr(pool, "_processes", {}).values()):
+            if process.is_alive():
+                process.kill()  # a reset still running
+        pool.shutdown(wait=False, cancel_futures=True)
+        for _, run_root, idx in jobs:  # what the killed resets had started
+            kill_recorded_groups(Path(run_root) / f"env_{idx}", grace=0.5)
+
+
+def concurrent_resets(case: Path, run_root: Path, n: int) -> tuple[float, float]:
+    [one] = _reset_in_processes([(str(case), str(run_root / "one"), 0)])
+    started = time.perf_counter()
+    _reset_in_processes([(str(case), str(run_root / "many"), i) for i in range(n)])
+    many = time.perf_counter() - started
     return one, many
 
 

@@ -420,7 +420,9 @@ time.sleep(5)
 def test_signals_leave_no_process_behind(tmp_path, phase, how):
     # The solver ignores SIGTERM (only SIGKILL ends it) and, for a step, is slow.
     prefix = ["sh", "-c", 'trap "" TERM; exec "$@"', "solver"]
-    case = make_case(tmp_path, prefix=prefix, max_time=10, timeouts={"kill_grace": 30})
+    # A grace far longer than the test: only the escalation on the signal can end it in time.
+    grace = 60 if phase == "kill-grace" else 1
+    case = make_case(tmp_path, prefix=prefix, max_time=10, timeouts={"kill_grace": grace})
     if phase == "step":
         config = json.loads((case / "gymprecice-config.json").read_text())
         config["physics_simulation_engine"]["solvers"]["fluid"]["options"]["argv"] += [
