@@ -390,10 +390,14 @@ class Env(CylinderEnv):
             time.sleep(5)
         return super()._initial_action()
 
-    def _close_external_resources(self):
-        if phase == "close" and self._session is not None:
+    fired = False
+
+    def close(self):
+        if phase == "close" and not Env.fired:  # the signal arrives as close() begins
+            Env.fired = True
             fire()
             time.sleep(5)
+        super().close()
 
 env = Env(case, 0, run_root=Path(case).parent / "runs")
 if phase == "kill-grace":
@@ -402,7 +406,6 @@ if phase == "kill-grace":
     env.close()
 elif phase == "close":
     env.reset(seed=0); report(env)
-    env._end_episode = lambda abort: None  # reach _close_external_resources alive
     env.close()
 elif phase == "step":
     env.reset(seed=0); report(env)
