@@ -1,38 +1,103 @@
 #!/usr/bin/env bash
-# Set up a development environment on a fresh Debian machine: system solvers + .venv.
+# Set up a development environment on a fresh Debian machine: solvers, the real coupling
+# stack, and .venv.
 #
-#   bash scripts/setup.sh            # everything the tests need
+#   bash scripts/setup.sh            # everything the tests and the main job need
 #
-# Installs (when missing and when allowed to): Debian's OpenFOAM v1912 and deal.II, which the
-# tests run for real; then a virtual environment in .venv with the four distributions
-# editable. torch is installed *pinned* before stable-baselines3 so pip takes the CPU build
-# instead of resolving an unpinned torch with several GB of CUDA packages.
-# preCICE itself is in no package registry: see README ("Real preCICE and the adapters");
-# where pkg-config finds one, pyprecice is built against it.
+# 1. Debian packages (when missing and when allowed to): OpenFOAM v1912, deal.II, Open MPI,
+#    and what building preCICE needs (compiler, CMake, Boost, Eigen, libxml2).
+# 2. A virtual environment in .venv with the four distributions editable. torch is installed
+#    *pinned* before stable-baselines3 so pip takes the CPU build instead of resolving an
+#    unpinned torch with several GB of CUDA packages.
+# 3. `gymprecice install`: preCICE, pyprecice and both preCICE adapters, built from release
+#    sources into a per-user prefix (reused by every clone; a second run takes seconds).
+#    Sources: $GYMPRECICE_SOURCES (an offline mirror of the release archives; default: a
+#    `vendor/` folder in `../shared/` beside the checkout, where one exists), else downloaded.
+#    A piece that cannot be built is reported with its log and the fix; the rest of the
+#    set-up goes on, and the tests that need that piece skip (fail under
+#    GYMPRECICE_REQUIRE_REAL=1, as in CI).
+#
+# Variables: GYMPRECICE_SKIP_APT=1 (no apt), GYMPRECICE_SKIP_STACK=1 (no native builds),
+# GYMPRECICE_SOURCES, GYMPRECICE_STACK_PREFIX (default ~/.local/share/gymprecice/stack).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 TORCH_VERSION="${GYMPRECICE_TORCH_VERSION:-2.13.0}"
 PYTHON="${PYTHON:-python3}"
+SETUP_START=$SECONDS
+
+phase() { echo "setup: $1 ($((SECONDS - SETUP_START)) s so far)"; }
+
+SOLVER_PACKAGES=(openfoam libdeal.ii-dev libopenmpi-dev)
+BUILD_PACKAGES=(g++ make cmake pkg-config libeigen3-dev libxml2-dev
+  libboost-dev libboost-log-dev libboost-thread-dev libboost-system-dev
+  libboost-filesystem-dev libboost-program-options-dev libboost-test-dev)
+
+SUDO=""
+can_apt() {
+  command -v apt-get >/dev/null 2>&1 && [ "${GYMPRECICE_SKIP_APT:-0}" != "1" ] || return 1
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null 2>&1 || return 1
+    SUDO="sudo"
+  fi
+}
 
 apt_install() {
   local missing=()
   for pkg in "$@"; do dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg"); done
   [ ${#missing[@]} -eq 0 ] && return 0
-  local sudo=""
-  if [ "$(id -u)" -ne 0 ]; then
-    if command -v sudo >/dev/null 2>&1; then sudo="sudo"; else
-      echo "setup: cannot install ${missing[*]} (not root, no sudo); tests that need them will be skipped" >&2
-      return 0
-    fi
-  fi
   echo "setup: installing ${missing[*]} from Debian"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends \
+    "${missing[@]}" >/dev/null
 }
 
-if command -v apt-get >/dev/null 2>&1 && [ "${GYMPRECICE_SKIP_APT:-0}" != "1" ]; then
-  apt_install openfoam libdeal.ii-dev libopenmpi-dev
+# Debian's OpenFOAM ships no headers and no wmake; the OpenFOAM-preCICE adapter is built
+# against the same release's source package, which apt fetches only with a deb-src entry.
+# The entry mirrors the machine's own Debian `deb` sources (same mirror, same suites).
+ensure_deb_src() {
+  [ -n "$(apt-cache showsrc openfoam 2>/dev/null | head -1)" ] && return 0
+  local made
+  made=$($SUDO python3 - <<'PY'
+import pathlib, re
+root = pathlib.Path("/etc/apt")
+made = []
+for src in sorted((root / "sources.list.d").glob("*.sources")):
+    text = src.read_text()
+    stanzas = [s for s in re.split(r"\n\s*\n", text) if re.search(r"^Types:.*\bdeb\b", s, re.M)]
+    stanzas = [s for s in stanzas if "deb-src" not in s and "debian" in s]
+    if stanzas:
+        out = root / "sources.list.d" / f"gymprecice-src-{src.stem}.sources"
+        out.write_text("\n\n".join(re.sub(r"^Types:.*$", "Types: deb-src", s, flags=re.M)
+                                   for s in stanzas) + "\n")
+        made.append(str(out))
+lines = []
+legacy = root / "sources.list"
+if legacy.is_file():
+    lines = [ln.replace("deb ", "deb-src ", 1) for ln in legacy.read_text().splitlines()
+             if ln.startswith("deb ") and "debian" in ln]
+if lines:
+    out = root / "sources.list.d" / "gymprecice-src.list"
+    out.write_text("\n".join(lines) + "\n")
+    made.append(str(out))
+print(" ".join(made))
+PY
+)
+  if [ -n "$made" ]; then
+    echo "setup: added deb-src entries for Debian's OpenFOAM sources ($made)"
+    $SUDO apt-get update -qq
+  fi
+}
+
+if can_apt; then
+  apt_install "${SOLVER_PACKAGES[@]}"
+  if [ "${GYMPRECICE_SKIP_STACK:-0}" != "1" ]; then
+    apt_install "${BUILD_PACKAGES[@]}"
+    ensure_deb_src || echo "setup: could not add deb-src entries; see the OpenFOAM adapter step" >&2
+  fi
+  phase "Debian packages ready"
+else
+  echo "setup: not installing Debian packages (no apt, not root and no sudo, or GYMPRECICE_SKIP_APT=1)" >&2
 fi
 
 if [ ! -x .venv/bin/python ]; then
@@ -49,11 +114,17 @@ $PIP install -q --disable-pip-version-check \
   -e packages/gymprecice-dealii \
   -e "packages/gymprecice-tutorials[train]" \
   pytest pytest-timeout "ruff==0.17.6" build mpi4py
-# pyprecice compiles against an installed preCICE (in no package registry: README, "Real
-# preCICE and the adapters"); take it whenever pkg-config finds one.
-if command -v pkg-config >/dev/null 2>&1 && pkg-config --exists libprecice \
-  && ! .venv/bin/python -c "import precice" >/dev/null 2>&1; then
-  $PIP install -q --disable-pip-version-check -e "packages/gymprecice-core[precice]" \
-    || echo "setup: pyprecice did not build against preCICE $(pkg-config --modversion libprecice); the tests that need it will be skipped" >&2
+phase ".venv ready"
+
+if [ "${GYMPRECICE_SKIP_STACK:-0}" != "1" ]; then
+  if [ -z "${GYMPRECICE_SOURCES:-}" ] && [ -d ../shared/vendor ]; then
+    GYMPRECICE_SOURCES="$(cd ../shared/vendor && pwd)"
+    export GYMPRECICE_SOURCES
+  fi
+  if ! .venv/bin/gymprecice install all; then
+    echo "setup: part of the real stack did not build (see above); the tests that need it" \
+      "will skip, or fail under GYMPRECICE_REQUIRE_REAL=1" >&2
+  fi
+  phase "real stack checked"
 fi
-echo "setup: done (.venv ready)"
+echo "setup: done (.venv ready) in $((SECONDS - SETUP_START)) s"

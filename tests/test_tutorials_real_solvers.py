@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from gymprecice.processes import kill_recorded_groups
+from gymprecice.stack import stack_which
 
 
 def _missing() -> list[str]:
@@ -119,7 +120,7 @@ def test_cylinder_envs_run_coupled_to_pimplefoam_and_the_actuation_acts(
 
 @pytest.mark.dealii
 @pytest.mark.timeout(600)
-@pytest.mark.skipif(shutil.which("elasticity") is None, reason="needs the deal.II adapter")
+@pytest.mark.skipif(stack_which("elasticity") is None, reason="needs the deal.II adapter")
 def test_perpendicular_flap_runs_fsi_with_deal_ii_and_closes_mid_episode(
     tmp_path: Path,
 ) -> None:

@@ -13,6 +13,7 @@ import pytest
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.precice_xml import load_precice_config
 from gymprecice.solver import SolverContext
+from gymprecice.stack import stack_which
 from gymprecice.watchpoints import WatchPointLog
 from gymprecice_dealii import plugin
 from gymprecice_dealii.prm import ElasticityParameters
@@ -287,8 +288,8 @@ def test_real_elasticity_starts_on_the_prepared_case(env_dir: Path, tmp_path: Pa
     Without its preCICE partner it cannot couple: it parses the file, builds the mesh and
     then waits for the fluid, which is where the test stops it.
     """
-    if shutil.which("elasticity") is None:
-        pytest.skip("the deal.II-preCICE adapter's elasticity program is not on PATH")
+    if stack_which("elasticity") is None:
+        pytest.skip("no elasticity program: run `gymprecice install dealii-adapter`")
     import subprocess
     import time
 

@@ -18,7 +18,6 @@ import json
 import os
 import platform
 import re
-import shutil
 import subprocess
 import sys
 import warnings
@@ -29,6 +28,7 @@ from typing import Any
 
 from gymprecice import __version__
 from gymprecice.errors import GymPreciceError
+from gymprecice.install_command import add_install_parser, stack_checks
 from gymprecice.plugins import (
     DISABLE_ENV_VAR,
     GymPrecicePluginManager,
@@ -46,19 +46,6 @@ MIN_PYTHON = (3, 10)
 PRECICE_ADVICE = (
     "build preCICE v3 from source (https://precice.org/installation-source-preparation.html) "
     'or install its package, then `pip install "gymprecice-core[precice]"` (pyprecice)'
-)
-OPENFOAM_ADVICE = (
-    "install OpenFOAM (e.g. `sudo apt install openfoam` on Debian/Ubuntu, or an openfoam.com "
-    "release) and source its etc/bashrc so that blockMesh and simpleFoam are on PATH; coupled "
-    "runs also need the OpenFOAM-preCICE adapter"
-)
-DEALII_ADVICE = (
-    "install deal.II (e.g. `sudo apt install libdeal.ii-dev`); it is needed to build the "
-    "deal.II-preCICE adapter's elasticity program"
-)
-ELASTICITY_ADVICE = (
-    "build the deal.II-preCICE adapter (https://github.com/precice/dealii-adapter) and put its "
-    "`elasticity` program on PATH (needed by the FSI environments, e.g. perpendicular flap)"
 )
 
 
@@ -90,6 +77,8 @@ def build_parser(pm: GymPrecicePluginManager | None = None) -> argparse.Argument
     p = sub.add_parser("doctor", help="check Python, preCICE and the solvers on this machine")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_doctor)
+
+    add_install_parser(sub)
 
     _add_plugin_commands(sub, pm or get_plugin_manager())
     return parser
@@ -283,6 +272,7 @@ def cmd_doctor(args: argparse.Namespace) -> int:
 def doctor_report() -> dict[str, Any]:
     """Core's checks plus every plugin's, as JSON-ready data; ``ok`` = all required pass."""
     checks: list[tuple[str, DoctorCheck]] = [("core", c) for c in core_checks()]
+    checks += [("install", c) for c in stack_checks()]
     pm = get_plugin_manager()
     for fail in pm.failures:
         origin = f"{fail.distribution} {fail.version}" if fail.distribution else fail.name
@@ -324,14 +314,8 @@ def doctor_report() -> dict[str, Any]:
 
 
 def core_checks() -> list[DoctorCheck]:
-    """What core itself looks for: Python, pyprecice + preCICE, OpenFOAM, deal.II."""
-    return [
-        _check_python(),
-        _check_pyprecice(),
-        _check_openfoam(),
-        _check_dealii(),
-        _check_program("elasticity", ELASTICITY_ADVICE),
-    ]
+    """What core itself looks for: Python and pyprecice + preCICE (solvers are the plugins')."""
+    return [_check_python(), _check_pyprecice()]
 
 
 def _check_python() -> DoctorCheck:
@@ -408,71 +392,3 @@ def _check_pyprecice() -> DoctorCheck:
             True,
         )
     return DoctorCheck(name, True, detail, "", True)
-
-
-def _run_quiet(argv: list[str]) -> str | None:
-    """stdout of a small probe command, or ``None`` if it is missing or fails."""
-    if shutil.which(argv[0]) is None:
-        return None
-    try:
-        proc = subprocess.run(
-            argv, capture_output=True, text=True, timeout=20, stdin=subprocess.DEVNULL
-        )
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    return proc.stdout.strip() if proc.returncode == 0 else None
-
-
-def _debian_version(package: str) -> str | None:
-    out = _run_quiet(["dpkg-query", "-W", "--showformat=${Status}\t${Version}", package])
-    if not out or "\t" not in out:
-        return None
-    status, version = out.split("\t", 1)
-    return version if status.endswith(" installed") and version else None
-
-
-def _check_openfoam() -> DoctorCheck:
-    programs = {p: shutil.which(p) for p in ("blockMesh", "simpleFoam")}
-    missing = [p for p, path in programs.items() if path is None]
-    version = os.environ.get("WM_PROJECT_VERSION") or None
-    if version is None and not missing:
-        version = _run_quiet(["foamVersion"])
-    package = _debian_version("openfoam")
-    if version is None and package:
-        version = f"{package} (Debian package)"
-    if not missing:
-        return DoctorCheck(
-            "OpenFOAM", True, f"{version or 'version unknown'} ({programs['blockMesh']})"
-        )
-    detail = f"{', '.join(missing)} not on PATH"
-    if package:
-        detail += f"; the Debian package openfoam {package} is installed: source its etc/bashrc"
-    return DoctorCheck("OpenFOAM", False, detail, OPENFOAM_ADVICE)
-
-
-_DEALII_INCLUDE_DIRS = ("/usr/include", "/usr/local/include")
-
-
-def _check_dealii() -> DoctorCheck:
-    package = _debian_version("libdeal.ii-dev")
-    if package:
-        return DoctorCheck("deal.II", True, f"{package} (Debian package libdeal.ii-dev)")
-    roots = [Path(os.environ["DEAL_II_DIR"]) / "include"] if os.environ.get("DEAL_II_DIR") else []
-    roots += [Path(p) for p in _DEALII_INCLUDE_DIRS]
-    for root in roots:
-        config = root / "deal.II" / "base" / "config.h"
-        if config.is_file():
-            match = re.search(
-                r'#\s*define\s+DEAL_II_PACKAGE_VERSION\s+"([^"]+)"',
-                config.read_text(errors="replace"),
-            )
-            version = match.group(1) if match else "version unknown"
-            return DoctorCheck("deal.II", True, f"{version} (headers in {root / 'deal.II'})")
-    return DoctorCheck(
-        "deal.II", False, "no libdeal.ii-dev package and no deal.II headers", DEALII_ADVICE
-    )
-
-
-def _check_program(program: str, advice: str) -> DoctorCheck:
-    path = shutil.which(program)
-    return DoctorCheck(program, path is not None, path or "not on PATH", "" if path else advice)

@@ -57,7 +57,9 @@ from typing import Any
 
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.hookspecs import hookimpl
+from gymprecice.precice_install import core_install_steps
 from gymprecice.solver import DoctorCheck, LaunchSpec, SolverContext
+from gymprecice.stack import InstallStep
 
 SCRIPT = "script"
 COMMAND = "command"
@@ -177,6 +179,11 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
                     f"(log in {solver.run_dir}); fix the script or the PATH and reset"
                 )
     return None
+
+
+@hookimpl(trylast=True)
+def gymprecice_install_steps() -> list[InstallStep]:
+    return core_install_steps()
 
 
 @hookimpl(trylast=True)

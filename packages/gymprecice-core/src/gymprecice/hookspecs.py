@@ -41,6 +41,7 @@ from gymprecice.solver import (
     OutputReader,
     SolverContext,
 )
+from gymprecice.stack import InstallStep
 
 PROJECT_NAME = "gymprecice"
 
@@ -49,6 +50,7 @@ hookimpl = pluggy.HookimplMarker(PROJECT_NAME)
 
 __all__ = [
     "DoctorCheck",
+    "InstallStep",
     "InterfaceGeometry",
     "LaunchSpec",
     "OutputReader",
@@ -147,6 +149,17 @@ def gymprecice_open_output(
 @hookspec
 def gymprecice_doctor_checks() -> list[DoctorCheck]:
     """Report what this plugin needs and whether the machine has it (``gymprecice doctor``)."""
+
+
+@hookspec
+def gymprecice_install_steps() -> list[InstallStep]:
+    """Pieces this plugin can build for ``gymprecice install`` (e.g. a solver's preCICE adapter).
+
+    Return :class:`gymprecice.stack.InstallStep` objects: how to tell the piece is there and
+    how to build it into the stack prefix. Core provides ``precice`` and ``pyprecice``; a step
+    that links preCICE lists ``requires=("precice",)`` and gets it built first. Return an
+    empty list (or nothing) when the plugin needs nothing built.
+    """
 
 
 @hookspec

@@ -41,8 +41,9 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice.errors import CaseError, ConfigError
-from gymprecice.hookspecs import hookimpl
+from gymprecice.hookspecs import InstallStep, hookimpl
 from gymprecice.solver import DoctorCheck, LaunchSpec, SolverContext
+from gymprecice.stack import stack_which
 from gymprecice.watchpoints import WatchPointLog, watch_point_file_name
 from gymprecice_dealii.prm import ElasticityParameters, PrmError
 
@@ -52,9 +53,9 @@ DEFAULT_PARAMETERS = "parameters.prm"
 OPTIONS = ("parameters", "program", "np", "mpirun", "threads", "output_interval")
 OUTPUTS = ("watchpoint",)
 BUILD_ADVICE = (
-    "build the deal.II-preCICE adapter (https://github.com/precice/dealii-adapter: needs "
-    "deal.II >= 9.2 and preCICE v3; `cmake -DDIM=2 . && make`) and put its `elasticity` "
-    "program on PATH, or set options.program to its path"
+    "build the deal.II-preCICE adapter with `gymprecice install dealii-adapter` (needs "
+    "deal.II >= 9.2), or put your own `elasticity` program on PATH, or set options.program "
+    "to its path"
 )
 
 LIBRARY_ADVICE = (
@@ -217,7 +218,7 @@ def gymprecice_open_output(
 @hookimpl
 def gymprecice_doctor_checks() -> list[DoctorCheck]:
     version, source = dealii_version()
-    program = shutil.which(DEFAULT_PROGRAM)
+    program = stack_which(DEFAULT_PROGRAM)
     return [
         DoctorCheck(
             name="deal.II library",
@@ -228,7 +229,7 @@ def gymprecice_doctor_checks() -> list[DoctorCheck]:
         DoctorCheck(
             name="deal.II-preCICE adapter (elasticity)",
             ok=program is not None,
-            detail=program or "elasticity is not on PATH",
+            detail=program or "elasticity is not on PATH nor built by `gymprecice install`",
             advice="" if program else BUILD_ADVICE,
         ),
     ]
@@ -340,7 +341,7 @@ def _find_program(solver: SolverContext, program: str) -> str:
         if path.is_file() and os.access(path, os.X_OK):
             return str(path)
     else:
-        found = shutil.which(program)
+        found = stack_which(program)  # PATH, then what `gymprecice install` built
         if found:
             return found
     raise CaseError(
@@ -377,3 +378,10 @@ def dealii_version() -> tuple[str | None, str]:
         if match:
             return match.group(1), str(header)
     return None, ""
+
+
+@hookimpl
+def gymprecice_install_steps() -> list[InstallStep]:
+    from gymprecice_dealii.adapter_install import elasticity_step
+
+    return [elasticity_step()]

@@ -36,6 +36,7 @@ import numpy as np
 
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.solver import LaunchSpec, SolverContext
+from gymprecice.stack import solver_environment
 from gymprecice_openfoam import control, foamio, prerun_cache
 from gymprecice_openfoam.installation import (
     OpenFOAMInstallation,
@@ -772,6 +773,8 @@ def launch_spec(solver: SolverContext) -> LaunchSpec:
         )
     extra = [str(a) for a in solver.options.get("solver_args", [])]
     env = dict(inst.env)
+    # the adapter built by `gymprecice install` (OpenFOAM dlopens it by bare name)
+    env.update(solver_environment({**os.environ, **env}))
     if state.np > 1:
         mpirun = inst.which("mpirun")
         if mpirun is None:

@@ -298,8 +298,8 @@ def doctor_checks() -> list[DoctorCheck]:
             detail=str(library) if library else f"{ADAPTER_LIBRARY} not found",
             advice=""
             if library
-            else "build it (github.com/precice/openfoam-adapter) for this OpenFOAM; without "
-            "it OpenFOAM runs uncoupled",
+            else "build it for this OpenFOAM with `gymprecice install openfoam-adapter`; "
+            "without it OpenFOAM runs uncoupled",
         )
     )
     return checks

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from gymprecice.errors import CaseError
+from gymprecice.stack import solver_environment
 
 #: Environment variable naming an OpenFOAM ``etc/bashrc`` to source (overrides discovery).
 BASHRC_ENV = "GYMPRECICE_OPENFOAM_BASHRC"
@@ -59,9 +60,14 @@ class OpenFOAMInstallation:
     version: str | None = None
 
     def environ(self, base: Mapping[str, str] | None = None) -> dict[str, str]:
-        """A full environment: ``base`` (default ``os.environ``) with ``env`` applied."""
+        """A full environment: ``base`` (default ``os.environ``) with ``env`` applied.
+
+        The stack built by ``gymprecice install`` is added last (its ``lib`` on
+        ``LD_LIBRARY_PATH``): OpenFOAM ``dlopen``s the preCICE adapter by bare name.
+        """
         merged = dict(os.environ if base is None else base)
         merged.update(self.env)
+        merged.update(solver_environment(merged))
         return merged
 
     def which(self, program: str) -> str | None:

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice.errors import CaseError, ConfigError
-from gymprecice.hookspecs import hookimpl
+from gymprecice.hookspecs import InstallStep, hookimpl
 from gymprecice.precice_xml import ParticipantSpec
 from gymprecice.solver import (
     DoctorCheck,
@@ -264,3 +264,10 @@ def gymprecice_open_output(
 @hookimpl
 def gymprecice_doctor_checks() -> list[DoctorCheck]:
     return checks.doctor_checks()
+
+
+@hookimpl
+def gymprecice_install_steps() -> list[InstallStep]:
+    from gymprecice_openfoam.adapter_install import openfoam_adapter_step
+
+    return [openfoam_adapter_step()]
