@@ -20,6 +20,18 @@ Every case checks that:
 
 How disk-full is simulated: see :mod:`gymprecice.testing.chaos` (RLIMIT_FSIZE on the
 solver; mounting a tiny tmpfs needs privileges test machines rarely have).
+
+Every case runs on the pyprecice double. The solver faults (SIGKILL, SIGSTOP, exit 1, at
+reset and mid-episode), two envs failing at once, and two envs running whole episodes side
+by side also run on real preCICE (marked ``precice``; skipped where ``import precice``
+fails in a child interpreter): both the coupling worker and the solver then use pyprecice.
+Real preCICE may finish a window or two with zero data after its partner died before
+blocking; the contract is the same: the failure is reported within the timeout as a
+truncation with ``info["failure"]``, the env respawns, nothing survives, the case is
+pristine. "Nothing survives" allows one thing real pyprecice brings: the ``orted`` Open MPI
+4 forks beside each MPI singleton (pyprecice imports mpi4py), in a session of its own,
+which exits by itself a moment after its singleton died (see
+:func:`gymprecice.testing.chaos.survivors`).
 """
 
 from __future__ import annotations
@@ -29,6 +41,7 @@ import hashlib
 import logging
 import os
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -36,14 +49,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gymprecice.core import LIBRARY_ENV_VAR
 from gymprecice.testing.chaos import (
     CylinderEnv,
     ProcessWatcher,
     corrupt_output,
     env_processes,
     inject,
-    pid_alive,
     solver_groups,
+    survivors,
     write_case,
 )
 from gymprecice.vector import ResilientVectorEnv
@@ -59,6 +73,44 @@ STEP_TIMEOUT_S = 8.0
 #: generous upper bound on "reported within the timeout" (loaded CI machines)
 REPORT_BOUND_S = PROGRESS_S + STEP_TIMEOUT_S + 10.0
 
+DOUBLE = "gymprecice.testing.fake_precice"
+REAL = "precice"
+
+
+def _real_precice_importable() -> bool:
+    # pyprecice loads the preCICE C++ library: check in a child so that a broken install
+    # skips instead of crashing the test process.
+    probe = subprocess.run([sys.executable, "-c", "import precice"], capture_output=True)
+    return probe.returncode == 0
+
+
+#: Marks of a real-preCICE variant; a hang fails the test instead of blocking the run.
+REAL_MARKS = [
+    pytest.mark.precice,
+    pytest.mark.skipif(
+        not _real_precice_importable(), reason="pyprecice / the preCICE library is not installed"
+    ),
+    pytest.mark.timeout(180),
+]
+#: The faults that also run on real preCICE (ids of RESET_FAULTS and MID_FAULTS).
+REAL_FAULTS = {"kill-9", "sigstop", "exit-1", "solver-kill-9", "solver-sigstop", "solver-exit-1"}
+
+LIBRARIES = [
+    pytest.param(DOUBLE, id="double"),
+    pytest.param(REAL, id="real-precice", marks=REAL_MARKS),
+]
+
+
+def with_real_variants(cases: list[tuple]) -> list:
+    """Each case on the double (id unchanged), plus ``<id>-real-precice`` for REAL_FAULTS."""
+    params = [pytest.param(DOUBLE, *case[1:], id=case[0]) for case in cases]
+    params += [
+        pytest.param(REAL, *case[1:], id=f"{case[0]}-real-precice", marks=REAL_MARKS)
+        for case in cases
+        if case[0] in REAL_FAULTS
+    ]
+    return params
+
 
 # -- helpers ---------------------------------------------------------------------------------
 
@@ -73,8 +125,9 @@ def tree_hash(root: Path) -> str:
 
 
 class Chaos:
-    def __init__(self, tmp_path: Path):
+    def __init__(self, tmp_path: Path, library: str = DOUBLE):
         self.tmp = tmp_path
+        self.library = library
         self.faults = tmp_path / "faults"
         self.case = write_case(
             tmp_path / "case",
@@ -83,6 +136,7 @@ class Chaos:
             window=0.01,
             windows_per_step=2,
             timeouts={"progress": PROGRESS_S, "reset": 30, "kill_grace": 0.5},
+            library=library,
         )
         self.runs = tmp_path / "runs"
         self.pristine = tree_hash(self.case)
@@ -115,10 +169,18 @@ class Chaos:
 
 
 @pytest.fixture
-def chaos(tmp_path, monkeypatch):
+def library() -> str:
+    """The preCICE library of the case (tests parametrized on ``library`` override it)."""
+    return DOUBLE
+
+
+@pytest.fixture
+def chaos(tmp_path, monkeypatch, library):
     # Coupling workers start faster without third-party plugins (they need none).
     monkeypatch.setenv("GYMPRECICE_DISABLE_PLUGINS", "1")
-    state = Chaos(tmp_path)
+    # The case's library is the env's and the solver's: no override of the env's side.
+    monkeypatch.delenv(LIBRARY_ENV_VAR, raising=False)
+    state = Chaos(tmp_path, library)
     yield state
     if state.venv is not None:
         state.venv.close()
@@ -156,12 +218,12 @@ def finish(chaos: Chaos, watcher: ProcessWatcher, caplog, *, steps: int = 2) -> 
     assert np.all(np.diff(np.array(times), axis=0) > 0)  # both envs advance in time
     watcher.stop()
     current = watcher.sample()
-    leaked = watcher.leaked(keep=current)
+    leaked = survivors(watcher.seen, keep=current)
     assert not leaked, f"processes of the failed episode survived: {leaked}"
     assert tree_hash(chaos.case) == chaos.pristine
     assert len(venv.failures) == 1
     venv.close()
-    assert not watcher.leaked() and not [p for p in current if pid_alive(p)]
+    assert not survivors(watcher.seen | current)
 
 
 # -- faults at reset ---------------------------------------------------------------------------
@@ -178,11 +240,10 @@ RESET_FAULTS = [
 
 
 @pytest.mark.parametrize(
-    ("phase", "fault", "params", "type_suffix", "tail"),
-    [case[1:] for case in RESET_FAULTS],
-    ids=[case[0] for case in RESET_FAULTS],
+    ("library", "phase", "fault", "params", "type_suffix", "tail"),
+    with_real_variants(RESET_FAULTS),
 )
-def test_fault_at_reset(chaos, caplog, phase, fault, params, type_suffix, tail):
+def test_fault_at_reset(chaos, caplog, library, phase, fault, params, type_suffix, tail):
     caplog.set_level(logging.WARNING, logger="gymprecice.vector")
     venv = chaos.make()
     watcher = watch(venv, FAILED)
@@ -274,11 +335,10 @@ MID_FAULTS = [
 
 
 @pytest.mark.parametrize(
-    ("armed", "action", "kind", "type_suffix", "tail"),
-    [case[1:] for case in MID_FAULTS],
-    ids=[case[0] for case in MID_FAULTS],
+    ("library", "armed", "action", "kind", "type_suffix", "tail"),
+    with_real_variants(MID_FAULTS),
 )
-def test_fault_mid_episode(chaos, caplog, armed, action, kind, type_suffix, tail):
+def test_fault_mid_episode(chaos, caplog, library, armed, action, kind, type_suffix, tail):
     caplog.set_level(logging.WARNING, logger="gymprecice.vector")
     venv = chaos.make()
     watcher = watch(venv, FAILED)
@@ -315,7 +375,8 @@ def test_fault_mid_episode(chaos, caplog, armed, action, kind, type_suffix, tail
     finish(chaos, watcher, caplog)
 
 
-def test_two_envs_failing_at_once_recover_in_parallel(chaos, caplog):
+@pytest.mark.parametrize("library", LIBRARIES)
+def test_two_envs_failing_at_once_recover_in_parallel(chaos, caplog, library):
     venv = chaos.make(n=3)
     watchers = [watch(venv, 1), watch(venv, 2)]
     venv.reset(seed=0)
@@ -331,5 +392,63 @@ def test_two_envs_failing_at_once_recover_in_parallel(chaos, caplog):
     for watcher in watchers:
         watcher.stop()
         current |= watcher.sample()
-    assert not [p for w in watchers for p in w.leaked(keep=current)]
+    assert not survivors(set().union(*(w.seen for w in watchers)), keep=current)
     assert tree_hash(chaos.case) == chaos.pristine
+
+
+# -- two envs running whole episodes side by side ----------------------------------------------
+
+
+@pytest.mark.parametrize("library", LIBRARIES)
+def test_two_envs_run_whole_episodes_side_by_side(tmp_path, monkeypatch, library):
+    """Two envs couple at once (each its own worker, solver and exchange directory) through
+    two whole episodes; both advance every step, and nothing runs after close()."""
+    monkeypatch.setenv("GYMPRECICE_DISABLE_PLUGINS", "1")
+    monkeypatch.delenv(LIBRARY_ENV_VAR, raising=False)
+    windows, per_step = 6, 2
+    case = write_case(
+        tmp_path / "case",
+        tmp_path / "faults",
+        end_time=windows * 0.01,
+        window=0.01,
+        windows_per_step=per_step,
+        timeouts={"progress": PROGRESS_S, "reset": 30, "kill_grace": 0.5},
+        library=library,
+    )
+    pristine = tree_hash(case)
+    fns = [
+        functools.partial(CylinderEnv, str(case), i, run_root=str(tmp_path / "runs"))
+        for i in range(2)
+    ]
+    venv = ResilientVectorEnv(
+        fns, step_timeout=STEP_TIMEOUT_S, reset_timeout=60, kill_grace=0.5, close_timeout=10
+    )
+    watchers = [watch(venv, 0), watch(venv, 1)]
+    actions = np.array([[0.0], [0.9]], dtype=np.float32)
+    try:
+        obs, _ = venv.reset(seed=0)
+        assert venv.pool.run_dirs[0] != venv.pool.run_dirs[1]
+        for _episode in range(2):
+            assert np.all(obs[:, 4] == 0.0)
+            times = [obs[:, 4].copy()]
+            for step in range(windows // per_step):
+                obs, _, terms, truncs, infos = venv.step(actions)
+                assert "failure" not in infos and not terms.any()
+                last = step == windows // per_step - 1
+                assert list(truncs) == [last, last]  # the coupling's end time: a time limit
+                final = np.asarray(infos["final_obs"].tolist()) if last else obs.copy()
+                times.append(final[:, 4])
+            times = np.array(times)
+            assert np.all(np.diff(times, axis=0) > 0)  # both envs advance every step
+            assert times[-1] == pytest.approx([windows * 0.01] * 2)
+            # each solver got its own env's jets through preCICE: blowing changes the drag
+            assert final[0, 3] != final[1, 3]
+        assert not venv.failures
+    finally:
+        venv.close()
+    seen = set()
+    for watcher in watchers:
+        seen |= watcher.stop()
+    assert len(seen) >= 2 * 2 * 2  # two episodes of two envs: worker and solver each
+    assert not survivors(seen), "processes survived close()"
+    assert tree_hash(case) == pristine

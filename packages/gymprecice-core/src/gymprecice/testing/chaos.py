@@ -47,6 +47,7 @@ import json
 import os
 import shutil
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -65,6 +66,7 @@ from gymprecice.testing.chaos_solver import (
     fault_path,
 )
 from gymprecice.testing.flows import fake_cylinder_geometry
+from gymprecice.testing.partner import DEFAULT_LIBRARY
 
 __all__ = [
     "FAULTS_VARIABLE",
@@ -73,12 +75,14 @@ __all__ = [
     "ProcessWatcher",
     "corrupt_output",
     "inject",
+    "is_mpi_singleton_daemon",
     "pid_alive",
     "process_family",
     "env_processes",
     "process_table",
     "processes_with_environment",
     "solver_groups",
+    "survivors",
     "write_case",
 ]
 
@@ -148,13 +152,18 @@ def write_case(
     write_outputs: bool = True,
     timeouts: Mapping[str, float] | None = None,
     run_root: str | os.PathLike[str] | None = None,
+    library: str = DEFAULT_LIBRARY,
 ) -> Path:
     """Write the case into ``root`` (made if needed); returns ``root``.
 
     ``faults_dir`` is where :func:`inject` arms faults for this case's envs. An episode
     lasts ``end_time / window`` time windows, ``windows_per_step`` of them per env step;
     the solver sleeps ``step_sleep`` seconds per time step (the cost of a CFD step).
-    ``timeouts`` go to the configuration's ``timeouts`` section.
+    ``timeouts`` go to the configuration's ``timeouts`` section. ``library`` is the module
+    imported as ``precice`` by both the env's coupling worker (``precice.library``) and the
+    solver (the partner's ``--library``): the double by default, ``"precice"`` for real
+    preCICE. The env's ``GYMPRECICE_PRECICE_LIBRARY`` overrides the env's side only, so
+    leave it unset when running this case.
     """
     root = Path(root)
     (root / "fluid" / "mesh").mkdir(parents=True, exist_ok=True)
@@ -162,7 +171,7 @@ def write_case(
     (root / "fluid" / "mesh" / "boundary").write_text(
         "".join(f"{patch}\n{{\n    type patch;\n}}\n" for patch in PATCHES)
     )
-    partner = ["--config", "{precice_config}", "--participant", "Fluid"]
+    partner = ["--config", "{precice_config}", "--participant", "Fluid", "--library", library]
     partner += ["--option", "probes=3"]  # small output files: predictable disk use
     if flow:
         partner += ["--flow", flow]
@@ -178,7 +187,7 @@ def write_case(
         "environment": {"name": "chaos-cylinder"},
         "precice": {
             "config_file": "precice-config.xml",
-            "library": "gymprecice.testing.fake_precice",
+            "library": library,
         },
         "physics_simulation_engine": {
             "solvers": {
@@ -258,6 +267,40 @@ def pid_alive(pid: int | None) -> bool:
         return False
     fields = _stat_fields(pid)
     return fields is not None and fields[0] not in (b"Z", b"X")
+
+
+def is_mpi_singleton_daemon(pid: int) -> bool:
+    """Whether ``pid`` is the ``orted`` an Open MPI 4 singleton started for itself.
+
+    pyprecice imports mpi4py, so every process that imports real ``precice`` (the coupling
+    worker, a Python solver) initialises an MPI singleton, and Open MPI 4 forks an
+    ``orted --set-sid ... --singleton-died-pipe N`` for it: in a session of its own, so
+    outside the process groups gymprecice records and kills. It exits by itself as soon as
+    its singleton is gone (the pipe closes), a moment after the singleton died.
+    """
+    try:
+        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return False
+    return bool(argv) and argv[0].endswith(b"orted") and b"--singleton-died-pipe" in argv
+
+
+def survivors(pids: Iterable[int], keep: Iterable[int] = (), mpi_grace: float = 10.0) -> list[int]:
+    """The live ``pids`` except ``keep``, once MPI singleton daemons among them had time to exit.
+
+    Any other live process is returned at once; while a live one is an Open MPI singleton
+    daemon (:func:`is_mpi_singleton_daemon`), wait up to ``mpi_grace`` seconds for it to
+    follow its dead singleton, so that one still there after the grace counts as leaked.
+    """
+    allowed = set(keep)
+    candidates = [p for p in set(pids) if p not in allowed]
+    deadline = time.monotonic() + mpi_grace
+    while True:
+        alive = sorted(p for p in candidates if pid_alive(p))
+        daemons = [p for p in alive if is_mpi_singleton_daemon(p)]
+        if not daemons or len(daemons) < len(alive) or time.monotonic() >= deadline:
+            return alive
+        time.sleep(0.05)
 
 
 def process_table() -> dict[int, tuple[int, int]]:
