@@ -254,7 +254,14 @@ class PidRegistry:
         self.add_record(GroupRecord(None, None, token))
 
     def add(self, pgid: int, *, starttime: int | None = None, token: str | None = None) -> None:
-        """Record a group (replacing an older record of the same pgid or token)."""
+        """Record a group (replacing an older record of the same pgid or token).
+
+        Without ``starttime`` or ``token`` the leader's start time is read now, while the
+        pid is known to be the caller's own child: a record that proves nothing is never
+        signalled, so a bare ``add(pid)`` must not write one.
+        """
+        if starttime is None and token is None:
+            starttime = process_starttime(pgid)
         self.add_record(GroupRecord(pgid, starttime, token))
 
     def add_record(self, record: GroupRecord) -> None:
