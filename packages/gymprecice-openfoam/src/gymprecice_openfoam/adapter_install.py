@@ -120,17 +120,19 @@ def _build(ctx: BuildContext) -> None:
         installation = find_openfoam()
     except GymPreciceError as exc:
         raise BuildError(f"{ctx.step.title}: {exc}") from None
-    adapter = ctx.unpack(ADAPTER_ARCHIVE)
     env = {**installation.environ(), **ctx.pkg_config_env()}
     env.update(FOAM_USER_LIBBIN=str(ctx.prefix / "lib"), WM_NCOMPPROCS=str(ctx.jobs))
-    (ctx.prefix / "lib").mkdir(parents=True, exist_ok=True)
     headers = Path(env.get("FOAM_SRC") or installation.project_dir / "src")
-    if shutil.which("wmake", path=env.get("PATH")) and (headers / "OpenFOAM").is_dir():
-        ctx.say(f"[install]   building against {installation.project_dir} (its wmake)")
-    else:
+    debian = None
+    if not (shutil.which("wmake", path=env.get("PATH")) and (headers / "OpenFOAM").is_dir()):
         debian = _debian_openfoam_version()
         if installation.layout != "debian" or debian is None:
             raise BuildError(f"{ctx.step.title}: {installation.project_dir}: {NO_HEADERS}")
+    adapter = ctx.unpack(ADAPTER_ARCHIVE)
+    (ctx.prefix / "lib").mkdir(parents=True, exist_ok=True)
+    if debian is None:
+        ctx.say(f"[install]   building against {installation.project_dir} (its wmake)")
+    else:
         env.update(_debian_build_tree(ctx, debian, adapter))
     ctx.say("[install]   compiling the adapter with wmake (about a minute)")
     ctx.run(["./Allwmake"], cwd=adapter, env=env)

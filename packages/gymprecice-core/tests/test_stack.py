@@ -1,0 +1,198 @@
+"""``gymprecice install``'s machinery: sources, checksums, stamps, failures, order.
+
+Steps here build nothing real: they write a file (or run a tiny shell command), so the
+tests exercise what every real step relies on: a checksum mismatch refuses the archive, a
+failed build leaves no stamp and skips what requires it, a second run takes the stamp.
+The real builds run in the set-up (``scripts/setup.sh``) and the ``precice`` tests use them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import subprocess
+import sys
+import tarfile
+from pathlib import Path
+
+import pytest
+
+from gymprecice import stack
+from gymprecice.install_command import install_steps, stack_checks
+from gymprecice.stack import (
+    BuildContext,
+    BuildError,
+    InstallStep,
+    SourceArchive,
+    install,
+    order_steps,
+    solver_environment,
+    stamp_of,
+)
+
+
+@pytest.fixture
+def prefix(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    root = tmp_path / "stack"
+    monkeypatch.setenv(stack.PREFIX_ENV, str(root))
+    monkeypatch.setenv(stack.DOWNLOAD_ENV, "0")
+    monkeypatch.delenv(stack.SOURCES_ENV, raising=False)
+    return root
+
+
+def make_archive(folder: Path, name: str = "demo-1.0") -> SourceArchive:
+    """A release-like archive ``<name>.tar.gz`` with one file, and its pinned description."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.tar.gz"
+    data = b"int main() { return 0; }\n"
+    with tarfile.open(path, "w:gz") as tar:
+        info = tarfile.TarInfo(f"{name}/main.c")
+        info.size = len(data)
+        tar.addfile(info, io.BytesIO(data))
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    return SourceArchive(filename=path.name, sha256=digest, url="", top=name)
+
+
+def copying_step(archive: SourceArchive, name: str = "demo", **kwargs) -> InstallStep:
+    """A step that 'builds' by copying the archive's file into <prefix>/lib."""
+    calls: list[int] = []
+
+    def build(ctx: BuildContext) -> None:
+        calls.append(1)
+        source = ctx.unpack(archive)
+        (ctx.prefix / "lib").mkdir(parents=True, exist_ok=True)
+        ctx.run(["cp", source / "main.c", ctx.prefix / "lib" / f"{name}.c"], cwd=ctx.work)
+
+    step = InstallStep(
+        name=name,
+        title=f"{name} 1.0",
+        version="1.0",
+        archive=archive,
+        build=build,
+        built=lambda p: (p / "lib" / f"{name}.c") if (p / "lib" / f"{name}.c").exists() else None,
+        **kwargs,
+    )
+    step.calls = calls  # type: ignore[attr-defined]
+    return step
+
+
+def test_builds_once_then_a_second_run_takes_the_stamp(prefix, tmp_path, monkeypatch):
+    archive = make_archive(tmp_path / "mirror")
+    monkeypatch.setenv(stack.SOURCES_ENV, str(tmp_path / "mirror"))
+    step = copying_step(archive)
+    lines: list[str] = []
+    first = install([step], say=lines.append)
+    assert [r.status for r in first] == ["built"]
+    assert stamp_of(step) is not None
+    assert (prefix / "logs" / "demo.log").is_file()
+    assert any("building" in line for line in lines) and any("built in" in line for line in lines)
+    second = install([step], say=lines.append)
+    assert [r.status for r in second] == ["done"] and step.calls == [1]
+    # what was built disappears: the stamp no longer counts, the step builds again
+    (prefix / "lib" / "demo.c").unlink()
+    assert stamp_of(step) is None
+    assert [r.status for r in install([step], say=lines.append)] == ["built"]
+
+
+def test_corrupt_archive_is_refused_and_nothing_is_marked_installed(prefix, tmp_path, monkeypatch):
+    archive = make_archive(tmp_path / "mirror")
+    (tmp_path / "mirror" / archive.filename).write_bytes(b"not the release")
+    monkeypatch.setenv(stack.SOURCES_ENV, str(tmp_path / "mirror"))
+    step = copying_step(archive)
+    lines: list[str] = []
+    [result] = install([step], say=lines.append)
+    assert result.status == "failed"
+    assert "checksum mismatch" in result.failure and archive.filename in result.failure
+    assert "replace it" in result.failure
+    assert stamp_of(step) is None and not (prefix / "stamps" / "demo.json").exists()
+    assert not (prefix / "build" / "demo").exists()  # scratch removed
+
+
+def test_missing_sources_without_download_name_the_variable(prefix, tmp_path):
+    archive = make_archive(tmp_path / "elsewhere")
+    [result] = install([copying_step(archive)], say=lambda _line: None)
+    assert result.status == "failed"
+    assert archive.filename in result.failure and stack.SOURCES_ENV in result.failure
+
+
+def test_missing_tool_names_the_piece_and_the_fix(prefix, tmp_path):
+    def build(ctx: BuildContext) -> None:
+        ctx.run(["no-such-compiler-xyz", "--version"], cwd=ctx.work)
+
+    step = InstallStep(
+        name="tool",
+        title="tool 1.0",
+        version="1.0",
+        build=build,
+        built=lambda p: None,
+        needs="install the compiler (apt-get install g++)",
+    )
+    [result] = install([step], say=lambda _line: None)
+    assert result.status == "failed"
+    assert "no-such-compiler-xyz" in result.failure and "apt-get install g++" in result.failure
+
+
+def test_failed_build_shows_the_error_lines_and_skips_what_requires_it(prefix, tmp_path):
+    def build(ctx: BuildContext) -> None:
+        script = "echo compiling; echo 'main.c:3: error: expected ;'; seq 1 40; exit 2"
+        ctx.run(["sh", "-c", script], cwd=ctx.work)
+
+    broken = InstallStep(name="base", title="base 1.0", version="1.0", build=build,
+                         built=lambda p: None)  # fmt: skip
+    archive = make_archive(tmp_path / "mirror")
+    dependent = copying_step(archive, name="child", requires=("base",))
+    results = install([broken, dependent], say=lambda _line: None)
+    assert [r.status for r in results] == ["failed", "skipped"]
+    assert "main.c:3: error: expected ;" in results[0].failure  # far above the tail
+    assert "exit status 2" in results[0].failure
+    assert "gymprecice install base" in results[0].failure
+    assert dependent.calls == [] and stamp_of(broken) is None
+
+
+def test_found_elsewhere_is_used_not_rebuilt(prefix, tmp_path):
+    archive = make_archive(tmp_path / "mirror")
+    step = copying_step(archive, found=lambda: "/opt/demo (pkg-config)")
+    [result] = install([step], say=lambda _line: None)
+    assert result.status == "found" and step.calls == []
+
+
+def test_order_puts_requirements_first_and_refuses_unknown_steps():
+    def step(name: str, *requires: str) -> InstallStep:
+        return InstallStep(name, name, "1", lambda c: None, lambda p: None, requires=requires)
+
+    steps = [step("adapter", "lib"), step("lib"), step("other")]
+    assert [s.name for s in order_steps(steps, ["adapter"])] == ["lib", "adapter"]
+    assert [s.name for s in order_steps(steps, ["all"])] == ["lib", "adapter", "other"]
+    with pytest.raises(BuildError, match="unknown install step nope; known: all, adapter"):
+        order_steps(steps, ["nope"])
+
+
+def test_solver_environment_adds_the_stack_once(prefix):
+    assert solver_environment({"PATH": "/usr/bin"}) == {}  # nothing built: nothing added
+    (prefix / "lib").mkdir(parents=True)
+    (prefix / "bin").mkdir()
+    env = solver_environment({"PATH": "/usr/bin", "LD_LIBRARY_PATH": "/opt/lib"})
+    assert env["PATH"].split(":") == ["/usr/bin", str(prefix / "bin")]
+    assert env["LD_LIBRARY_PATH"].split(":") == ["/opt/lib", str(prefix / "lib")]
+    assert solver_environment(env) == {}
+
+
+def test_every_installed_plugin_contributes_its_step():
+    names = [s.name for s in install_steps()]
+    assert names[:2] == ["precice", "pyprecice"]
+    assert {"openfoam-adapter", "dealii-adapter"} <= set(names)
+    assert all(s.archive is None or len(s.archive.sha256) == 64 for s in install_steps())
+
+
+def test_doctor_lines_say_what_to_run(prefix):
+    step = InstallStep("demo", "demo 1.0", "1.0", lambda c: None, lambda p: None)
+    [check] = stack_checks([step])
+    assert not check.ok and check.advice == "run `gymprecice install demo`"
+
+
+def test_install_command_lists_and_refuses_unknown_steps(prefix):
+    run = [sys.executable, "-m", "gymprecice", "install"]
+    listed = subprocess.run([*run, "--list"], capture_output=True, text=True, timeout=120)
+    assert listed.returncode == 0 and "openfoam-adapter" in listed.stdout
+    wrong = subprocess.run([*run, "precise"], capture_output=True, text=True, timeout=120)
+    assert wrong.returncode == 2 and "unknown install step precise" in wrong.stdout
