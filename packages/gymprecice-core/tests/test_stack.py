@@ -196,3 +196,17 @@ def test_install_command_lists_and_refuses_unknown_steps(prefix):
     assert listed.returncode == 0 and "openfoam-adapter" in listed.stdout
     wrong = subprocess.run([*run, "precise"], capture_output=True, text=True, timeout=120)
     assert wrong.returncode == 2 and "unknown install step precise" in wrong.stdout
+
+
+def test_doctor_says_what_is_wrong_when_pyprecice_cannot_load_libprecice(prefix):
+    from gymprecice.cli import _pyprecice_advice
+
+    (prefix / "lib").mkdir(parents=True)
+    (prefix / "lib" / "libprecice.so.3").write_bytes(b"")
+    error = "ImportError: libprecice.so.3: cannot open shared object file: No such file"
+    advice = _pyprecice_advice(error)
+    assert "does not find libprecice" in advice and str(prefix / "lib") in advice
+    assert "gymprecice install pyprecice --force" in advice and "LD_LIBRARY_PATH" in advice
+    assert "gymprecice install" in _pyprecice_advice(
+        "ModuleNotFoundError: No module named 'precice'"
+    )

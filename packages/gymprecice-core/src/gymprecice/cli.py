@@ -39,13 +39,14 @@ from gymprecice.plugins import (
     solver_kinds,
 )
 from gymprecice.solver import DoctorCheck
+from gymprecice.stack import stack_prefix
 
 __all__ = ["build_parser", "doctor_report", "main"]
 
 MIN_PYTHON = (3, 10)
 PRECICE_ADVICE = (
-    "build preCICE v3 from source (https://precice.org/installation-source-preparation.html) "
-    'or install its package, then `pip install "gymprecice-core[precice]"` (pyprecice)'
+    "run `gymprecice install` (builds preCICE and pyprecice from release sources), or build "
+    'preCICE v3 yourself and `pip install "gymprecice-core[precice]"` (pyprecice)'
 )
 
 
@@ -351,6 +352,21 @@ print("GYMPRECICE-PROBE " + json.dumps(out))
 """
 
 
+def _pyprecice_advice(error: str) -> str:
+    """What to do when ``import precice`` failed, from why it failed."""
+    if "No module named" in error:
+        return "pyprecice is not installed in this environment: run `gymprecice install`"
+    if "libprecice" in error and "cannot open shared object" in error:
+        built = sorted((stack_prefix() / "lib").glob("libprecice.so*"))
+        where = f"; preCICE is built at {built[0].parent}" if built else ""
+        return (
+            "pyprecice is installed but the dynamic linker does not find libprecice"
+            f"{where}: run `gymprecice install pyprecice --force` (links pyprecice to the "
+            "stack's preCICE with an RPATH), or add preCICE's lib directory to LD_LIBRARY_PATH"
+        )
+    return PRECICE_ADVICE
+
+
 def _check_pyprecice() -> DoctorCheck:
     name = "pyprecice"
     try:
@@ -376,7 +392,7 @@ def _check_pyprecice() -> DoctorCheck:
         )
     probe = json.loads(found.group(1))
     if "error" in probe:
-        return DoctorCheck(name, False, probe["error"], PRECICE_ADVICE, True)
+        return DoctorCheck(name, False, probe["error"], _pyprecice_advice(probe["error"]), True)
     library = (probe.get("library") or "").split(";", 1)[0].strip()
     detail = f"pyprecice {probe.get('version') or '?'} at {probe.get('module')}"
     detail += f"; preCICE library {library}" if library else "; preCICE library version unknown"
