@@ -109,7 +109,7 @@ if ! .venv/bin/python -c "import torch" >/dev/null 2>&1; then
   $PIP install -q --disable-pip-version-check "torch==${TORCH_VERSION}"
 fi
 $PIP install -q --disable-pip-version-check \
-  -e packages/gymprecice-core \
+  -e "packages/gymprecice-core[ray]" \
   -e packages/gymprecice-openfoam \
   -e packages/gymprecice-dealii \
   -e "packages/gymprecice-tutorials[train]" \

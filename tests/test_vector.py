@@ -626,3 +626,17 @@ def test_sb3_ppo_trains_through_failures_and_logs_telemetry(tmp_path, capsys):
     header = (tmp_path / "tb" / "progress.csv").read_text().splitlines()[0].split(",")
     assert "gymprecice/env_step_s_mean" in header and "gymprecice/failures_total" in header
     assert "gymprecice vector env: 2 envs" in capsys.readouterr().out
+
+
+def test_telemetry_summary_table_is_aligned():
+    from gymprecice.telemetry import SERIES
+
+    telemetry = Telemetry(num_envs=1)
+    for name in SERIES:
+        telemetry.add(name, 0.125)
+    lines = telemetry.summary().splitlines()
+    table = [ln for ln in lines if ln.startswith("  ") and ln.rstrip().endswith("0.125")]
+    header = next(ln for ln in lines if "[seconds]" in ln)
+    assert len(table) == len(SERIES)
+    # every row's last column ends where the header's "max" ends
+    assert {len(row.rstrip()) for row in table} == {len(header.rstrip())}

@@ -259,7 +259,10 @@ class Telemetry:
             f"{self.episodes} episodes started, {len(self.failures)} failures, "
             f"{self.respawns} worker restarts"
         ]
-        header = f"  {'[seconds]':<30}{'count':>8}{'mean':>11}{'p50':>11}{'p90':>11}{'p99':>11}{'max':>11}"
+        width = max(len(label) for label in SERIES.values()) + 2  # labels never push columns
+        header = f"  {'[seconds]':<{width}}{'count':>8}" + "".join(
+            f"{name:>11}" for name in ("mean", "p50", "p90", "p99", "max")
+        )
         rows = []
         totals: dict[str, float] = {}
         for name, label in SERIES.items():
@@ -268,7 +271,7 @@ class Telemetry:
                 continue
             totals[name] = stats.total
             rows.append(
-                f"  {label:<30}{stats.count:>8}{stats.mean:>11.4g}{stats.p50:>11.4g}"
+                f"  {label:<{width}}{stats.count:>8}{stats.mean:>11.4g}{stats.p50:>11.4g}"
                 f"{stats.p90:>11.4g}{stats.p99:>11.4g}{stats.max:>11.4g}"
             )
         if rows:
