@@ -55,3 +55,73 @@ def test_openfoam_example_env_constructs(tmp_path: Path, monkeypatch) -> None:
         assert env.action_space.shape == (1,) and env.observation_space.shape == (3,)
     finally:
         env.close()
+
+
+def _real_precice_importable() -> bool:
+    import subprocess
+    import sys
+
+    probe = subprocess.run([sys.executable, "-c", "import precice"], capture_output=True)
+    return probe.returncode == 0
+
+
+def _on_real_precice(example: str, tmp_path: Path) -> Path:
+    """A copy of an example whose config (and solver command) use real pyprecice."""
+    import json
+    import shutil
+
+    case = tmp_path / example
+    shutil.copytree(EXAMPLES / example, case)
+    config_path = case / "gymprecice-config.json"
+    text = config_path.read_text().replace("gymprecice.testing.fake_precice", "precice")
+    config_path.write_text(text)
+    assert json.loads(text)["precice"]["library"] == "precice"
+    return case
+
+
+@pytest.mark.precice
+@pytest.mark.skipif(not _real_precice_importable(), reason="pyprecice / preCICE not installed")
+def test_python_solver_example_runs_on_real_precice(tmp_path: Path, monkeypatch) -> None:
+    case = _on_real_precice("python-solver", tmp_path)
+    monkeypatch.chdir(tmp_path)
+    env = _load(case / "env.py").HeatedRodEnv(case)
+    try:
+        obs, _ = env.reset(seed=0)
+        assert not obs.any()
+        for _ in range(3):
+            obs, reward, terminated, truncated, info = env.step(np.full(3, 40.0, np.float32))
+            assert (obs > 0).all() and np.isfinite(reward) and not (terminated or truncated)
+        assert info["time"] == pytest.approx(0.3)
+    finally:
+        env.close()
+
+
+@pytest.mark.precice
+@pytest.mark.openfoam
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_openfoam_example_runs_on_real_openfoam_and_precice(tmp_path: Path, monkeypatch) -> None:
+    from gymprecice.errors import CaseError
+    from gymprecice_openfoam.installation import find_openfoam
+
+    try:
+        adapter = find_openfoam().find_library()
+    except CaseError:
+        adapter = None
+    if adapter is None or not _real_precice_importable():
+        pytest.skip("needs OpenFOAM, the OpenFOAM-preCICE adapter and pyprecice")
+    case = _on_real_precice("openfoam-channel", tmp_path)
+    monkeypatch.chdir(tmp_path)
+    env = _load(case / "env.py").ChannelEnv(case)
+    try:
+        obs, _ = env.reset(seed=0)
+        assert obs.shape == (3,) and not obs.any()  # no probe row at the start time
+        seen = []
+        for speed in (0.0, 0.2):
+            obs, _, terminated, _, _ = env.step(np.array([speed], np.float32))
+            assert np.isfinite(obs).all() and not terminated
+            seen.append(obs.copy())
+        # the inlet speed the controller wrote reached OpenFOAM: the pressures answered
+        assert not np.allclose(seen[0], seen[1])
+    finally:
+        env.close()
