@@ -141,6 +141,26 @@ def test_inflow_profile_is_the_benchmark_parabola() -> None:
 # --------------------------------------------------------------------------------------
 
 
+def test_one_window_per_action(tmp_path: Path) -> None:
+    """``coupling="action"``: one serial-explicit window per action, linear waveform."""
+    spec = recipes.case_spec("quickstart", coupling="action", snapshots=(4.7, 4.74))
+    recipes.write_case(spec, tmp_path / "case")
+    cfg = load_precice_config(tmp_path / "case" / "precice-config.xml")
+    [scheme] = cfg.coupling_schemes
+    assert scheme.kind == "serial-explicit"
+    assert (scheme.first, scheme.second) == ("Controller", "Fluid")
+    assert scheme.time_window_size == pytest.approx(spec.steps_per_action * spec.flow.dt)
+    assert cfg.data["Velocity"].waveform_degree == 1
+    gp = json.loads((tmp_path / "case" / "gymprecice-config.json").read_text())
+    assert gp["actions"] == {"windows": 1, "scheme": "hold"}
+    options = gp["physics_simulation_engine"]["solvers"]["fluid"]["options"]
+    assert options["snapshots"] == [4.7, 4.74]
+    # the fluid case, and with it the pre-run, is the same as with one window per step
+    assert recipes.fluid_files(spec) == recipes.fluid_files(replace(spec, coupling="step"))
+    with pytest.raises(ValueError, match="coupling"):
+        _ = replace(spec, coupling="substep").time_window
+
+
 @pytest.mark.parametrize("name", CASE_NAMES)
 def test_precice_wiring(name: str) -> None:
     spec = recipes.CASES[name]

@@ -94,7 +94,8 @@ def rollout(
     coefficient_rows: list[tuple[int, float, float, float]] = []
     summaries = []
     for episode in range(episodes):
-        obs, info = env.reset(seed=seed + episode)
+        # a case with a library of start snapshots starts from its held-out ones
+        obs, info = env.reset(seed=seed + episode, options={"split": "eval"})
         t = float(info.get("time", 0.0))
         total, step = 0.0, 0
         while True:

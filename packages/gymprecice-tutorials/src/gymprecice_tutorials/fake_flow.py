@@ -86,6 +86,8 @@ def spec_from_json(text: str) -> CaseSpec:
     data = json.loads(text)
     geometry = dict(data.pop("geometry"))
     geometry["centre"] = tuple(geometry["centre"])
+    if "snapshots" in data:
+        data["snapshots"] = tuple(data["snapshots"])
     return CaseSpec(
         geometry=Geometry(**geometry),
         resolution=Resolution(**data.pop("resolution")),

@@ -51,6 +51,8 @@ PRECICE_FO_FILE = "system/preciceAdapterFunctionObject"
 #: "jets": two jets (patches jet1, jet2) set by the controller; "rotation": the whole
 #: cylinder wall (patch cylinder) moves with the velocity the controller sets
 Control = Literal["jets", "rotation"]
+#: How one action reaches the solver (see :attr:`CaseSpec.coupling`).
+Coupling = Literal["step", "action"]
 
 
 # --------------------------------------------------------------------------------------
@@ -148,11 +150,26 @@ class CaseSpec:
     geometry: Geometry = field(default_factory=Geometry)
     resolution: Resolution = field(default_factory=Resolution)
     flow: Flow = field(default_factory=Flow)
-    #: RL episode: number of actions and solver time steps (= coupling windows) per action
+    #: RL episode: number of actions and solver time steps per action
     actions_per_episode: int = 80
     steps_per_action: int = 50
+    #: ``"step"``: one preCICE time window per solver step (parallel-explicit); the
+    #: controller writes every window and core's ``ramp`` schedule moves the actuator from
+    #: the previous action to the new one. ``"action"``: one time window per action
+    #: (serial-explicit, the controller first); the solver subcycles inside it, the OpenFOAM
+    #: adapter reads the data at the end of each substep and preCICE interpolates the written
+    #: action linearly across the window (``waveform-degree="1"``): the same ramp with
+    #: ``steps_per_action`` times fewer exchanges.
+    coupling: Coupling = "step"
     #: simulated time of the uncoupled pre-run that gives the developed-shedding snapshot
     prerun_end_time: float = 6.0
+    #: optional episode starts (simulated times before ``prerun_end_time``) that the
+    #: pre-run also writes: a library of developed-flow snapshots at different shedding
+    #: phases. The OpenFOAM plugin splits them once into training starts and held-out
+    #: evaluation starts (every fourth, ``eval_fraction`` 0.25); training resets draw from
+    #: the first, ``gymprecice evaluate`` / ``baseline`` from the second. Empty: every
+    #: episode starts from ``prerun_end_time``.
+    snapshots: tuple[float, ...] = ()
     n_procs: int = 2
     #: write fields every this many seconds of simulated time (0: only at endTime)
     write_interval: float = 0.0
@@ -163,6 +180,17 @@ class CaseSpec:
     @property
     def episode_time(self) -> float:
         return self.actions_per_episode * self.steps_per_action * self.flow.dt
+
+    @property
+    def action_time(self) -> float:
+        return self.steps_per_action * self.flow.dt
+
+    @property
+    def time_window(self) -> float:
+        """The preCICE time window: one solver step, or one action (:attr:`coupling`)."""
+        if self.coupling not in ("step", "action"):
+            raise ValueError(f"coupling must be 'step' or 'action', got {self.coupling!r}")
+        return self.action_time if self.coupling == "action" else self.flow.dt
 
     @property
     def interfaces(self) -> tuple[str, ...]:
@@ -763,13 +791,22 @@ def precice_config(spec: CaseSpec) -> str:
         exchanges.append(
             f'    <exchange data="Velocity" mesh="{cm}" from="Controller" to="Fluid" />'
         )
+    # One window per action: serial-explicit with the controller first, so that the fluid
+    # receives the window's action at its end and interpolates it linearly from the
+    # previous one while it subcycles (parallel-explicit would apply it one window late).
+    scheme = "serial-explicit" if spec.coupling == "action" else "parallel-explicit"
+    data = (
+        '  <data:vector name="Velocity" waveform-degree="1" />\n\n'
+        if spec.coupling == "action"
+        else '  <data:vector name="Velocity" />\n\n'
+    )
     return (
         '<?xml version="1.0" encoding="UTF-8" ?>\n'
         "<!-- gymprecice tutorial case, written by gymprecice_tutorials.recipes -->\n"
         "<precice-configuration>\n"
         '  <log>\n    <sink filter="%Severity% > debug and %Rank% = 0"'
         ' format="---[precice] %ColorizedSeverity% %Message%" enabled="true" />\n  </log>\n\n'
-        '  <data:vector name="Velocity" />\n\n'
+        + data
         + "\n\n".join(meshes)
         + '\n\n  <participant name="Fluid">\n'
         + "\n".join(fluid)
@@ -777,12 +814,12 @@ def precice_config(spec: CaseSpec) -> str:
         + "\n".join(controller)
         + "\n  </participant>\n\n"
         '  <m2n:sockets acceptor="Controller" connector="Fluid" exchange-directory=".." />\n\n'
-        "  <coupling-scheme:parallel-explicit>\n"
+        f"  <coupling-scheme:{scheme}>\n"
         '    <participants first="Controller" second="Fluid" />\n'
         f'    <max-time value="{_fmt(spec.episode_time)}" />\n'
-        f'    <time-window-size value="{_fmt(spec.flow.dt)}" />\n'
+        f'    <time-window-size value="{_fmt(spec.time_window)}" />\n'
         + "\n".join(exchanges)
-        + "\n  </coupling-scheme:parallel-explicit>\n</precice-configuration>\n"
+        + f"\n  </coupling-scheme:{scheme}>\n</precice-configuration>\n"
     )
 
 
@@ -797,7 +834,10 @@ def gymprecice_config(spec: CaseSpec) -> dict[str, object]:
                     "kind": "openfoam",
                     "path": FLUID_DIR,
                     "participant": "Fluid",
-                    "options": {"prerun_end_time": spec.prerun_end_time},
+                    "options": {
+                        "prerun_end_time": spec.prerun_end_time,
+                        **({"snapshots": list(spec.snapshots)} if spec.snapshots else {}),
+                    },
                 }
             }
         },
@@ -807,7 +847,12 @@ def gymprecice_config(spec: CaseSpec) -> dict[str, object]:
             "read_from": {},
             "meshes": {name: _mesh_name("Controller", name) for name in spec.interfaces},
         },
-        "actions": {"windows": spec.steps_per_action, "scheme": "ramp"},
+        # one window per action: preCICE ramps between the written actions (waveform)
+        "actions": (
+            {"windows": 1, "scheme": "hold"}
+            if spec.coupling == "action"
+            else {"windows": spec.steps_per_action, "scheme": "ramp"}
+        ),
     }
 
 

@@ -178,6 +178,14 @@ class CylinderFlowEnv(Adapter):
 
     # -- the case ----------------------------------------------------------------------------
     def _make_spec(self, episode_time: float | None, overrides: dict[str, Any]) -> CaseSpec:
+        # ``--env-kwargs`` is JSON: a mapping for ``geometry``, ``resolution`` or ``flow``
+        # replaces only the fields it names, e.g. {"flow": {"dt": 1e-3}}
+        base = recipes.case_spec(self.recipe)
+        for name in ("geometry", "resolution", "flow"):
+            if isinstance(overrides.get(name), Mapping):
+                overrides[name] = replace(getattr(base, name), **overrides[name])
+        if "snapshots" in overrides:
+            overrides["snapshots"] = tuple(float(t) for t in overrides["snapshots"])
         spec = recipes.case_spec(self.recipe, **overrides) if overrides else None
         spec = spec or recipes.case_spec(self.recipe)
         if episode_time is not None:
@@ -342,7 +350,10 @@ class JetCylinderEnv(CylinderFlowEnv):
     * ``episode_time``: simulated seconds per episode (default: the recipe's 2 s); a
       multiple of one action's 0.025 s.
     * ``output_timeout``: seconds to wait for the solver's probe/force output of a step.
-    * ``case_overrides``: other :class:`~gymprecice_tutorials.recipes.CaseSpec` fields.
+    * ``case_overrides``: other :class:`~gymprecice_tutorials.recipes.CaseSpec` fields
+      (``geometry``, ``resolution`` and ``flow`` as mappings of the fields to change), e.g.
+      ``{"coupling": "action"}``: one preCICE time window per action, the solver subcycling
+      inside it (see :attr:`~gymprecice_tutorials.recipes.CaseSpec.coupling`).
     * ``double_options``: options of the test-double case (see ``fake_flow``).
     """
 
