@@ -74,6 +74,7 @@ __all__ = [
     "CylinderEnv",
     "ProcessWatcher",
     "corrupt_output",
+    "describe_processes",
     "inject",
     "is_mpi_singleton_daemon",
     "pid_alive",
@@ -288,19 +289,43 @@ def is_mpi_singleton_daemon(pid: int) -> bool:
 def survivors(pids: Iterable[int], keep: Iterable[int] = (), mpi_grace: float = 10.0) -> list[int]:
     """The live ``pids`` except ``keep``, once MPI singleton daemons among them had time to exit.
 
-    Any other live process is returned at once; while a live one is an Open MPI singleton
-    daemon (:func:`is_mpi_singleton_daemon`), wait up to ``mpi_grace`` seconds for it to
-    follow its dead singleton, so that one still there after the grace counts as leaked.
+    Any other live process is returned at once; while the live ones are all Open MPI
+    singleton daemons (:func:`is_mpi_singleton_daemon`) or processes already exiting (their
+    memory released: an empty command line, e.g. an ``orted`` in uninterruptible exit),
+    wait up to ``mpi_grace`` seconds for them to go, so that one still there after the
+    grace counts as leaked.
     """
     allowed = set(keep)
     candidates = [p for p in set(pids) if p not in allowed]
+    daemons = {p for p in candidates if is_mpi_singleton_daemon(p)}
     deadline = time.monotonic() + mpi_grace
     while True:
         alive = sorted(p for p in candidates if pid_alive(p))
-        daemons = [p for p in alive if is_mpi_singleton_daemon(p)]
-        if not daemons or len(daemons) < len(alive) or time.monotonic() >= deadline:
+        lingering = [p for p in alive if p in daemons or _exiting(p)]
+        if not lingering or len(lingering) < len(alive) or time.monotonic() >= deadline:
             return alive
         time.sleep(0.05)
+
+
+def _exiting(pid: int) -> bool:
+    try:
+        return not Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return True
+
+
+def describe_processes(pids: Iterable[int]) -> list[str]:
+    """``"pid state ppid pgid: command line"`` of each pid (for assertion messages)."""
+    out = []
+    for pid in pids:
+        fields = _stat_fields(pid)
+        try:
+            argv = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").strip()
+        except OSError:
+            argv = b"?"
+        head = " ".join(f.decode() for f in fields[:3]) if fields else "gone"
+        out.append(f"{pid} {head}: {argv.decode(errors='replace')[:200]}")
+    return out
 
 
 def process_table() -> dict[int, tuple[int, int]]:
