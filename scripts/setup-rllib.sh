@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# A second virtual environment, .venv-rllib, for RLlib: ray[rllib] 2.60 pins gymnasium 1.2.2,
+# older than the Gymnasium of .venv, so it cannot share .venv. tests/test_rllib.py runs here
+# (it skips in .venv).
+#
+#   bash scripts/setup-rllib.sh      # idempotent: a second run takes seconds
+#
+# torch is installed *pinned* first, so pip takes the CPU build instead of resolving an
+# unpinned torch with several GB of CUDA packages.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+TORCH_VERSION="${GYMPRECICE_TORCH_VERSION:-2.13.0}"
+RAY_VERSION="${GYMPRECICE_RLLIB_RAY_VERSION:-2.60.0}"
+PYTHON="${PYTHON:-python3}"
+VENV=.venv-rllib
+START=$SECONDS
+
+if [ ! -x "$VENV/bin/python" ]; then
+  "$PYTHON" -m venv "$VENV"
+fi
+PY="$VENV/bin/python"
+PIP="$PY -m pip"
+STAMP="$VENV/.gymprecice-setup"
+WANT="torch==${TORCH_VERSION} ray[rllib]==${RAY_VERSION} tutorials[train] $(cat packages/*/pyproject.toml | cksum)"
+
+if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ] \
+  && "$PY" -c "import torch, ray.rllib, gymprecice, gymprecice_tutorials, stable_baselines3, pytest" >/dev/null 2>&1; then
+  echo "setup-rllib: $VENV up to date ($((SECONDS - START)) s)"
+  exit 0
+fi
+
+$PIP install -q --disable-pip-version-check --upgrade pip >/dev/null
+if [ "$("$PY" -c 'import torch; print(torch.__version__.split("+")[0])' 2>/dev/null)" != "$TORCH_VERSION" ]; then
+  $PIP install -q --disable-pip-version-check "torch==${TORCH_VERSION}"
+fi
+# torch stays pinned through the rest: a resolver must not swap it for a CUDA build.
+$PIP install -q --disable-pip-version-check \
+  "torch==${TORCH_VERSION}" \
+  "ray[rllib]==${RAY_VERSION}" \
+  -e packages/gymprecice-core \
+  -e packages/gymprecice-openfoam \
+  -e packages/gymprecice-dealii \
+  -e "packages/gymprecice-tutorials[train]" \
+  pytest pytest-timeout
+"$PY" -c "import gymnasium, ray, torch; print('setup-rllib: ray', ray.__version__, 'gymnasium', gymnasium.__version__, 'torch', torch.__version__)"
+echo "$WANT" >"$STAMP"
+echo "setup-rllib: $VENV ready in $((SECONDS - START)) s"
