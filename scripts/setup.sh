@@ -17,7 +17,10 @@
 #    set-up goes on, and the tests that need that piece skip (fail under
 #    GYMPRECICE_REQUIRE_REAL=1, as in CI).
 #
+# 4. .venv-rllib: RLlib (ray[rllib] 2.60 pins gymnasium 1.2.2) for the RLlib tests.
+#
 # Variables: GYMPRECICE_SKIP_APT=1 (no apt), GYMPRECICE_SKIP_STACK=1 (no native builds),
+# GYMPRECICE_SKIP_RLLIB=1 (no .venv-rllib),
 # GYMPRECICE_SOURCES, GYMPRECICE_STACK_PREFIX (default ~/.local/share/gymprecice/stack).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -126,5 +129,10 @@ if [ "${GYMPRECICE_SKIP_STACK:-0}" != "1" ]; then
       "will skip, or fail under GYMPRECICE_REQUIRE_REAL=1" >&2
   fi
   phase "real stack checked"
+fi
+# RLlib pins an older Gymnasium (1.2.2) than .venv's: its own environment, its own tests.
+if [ "${GYMPRECICE_SKIP_RLLIB:-0}" != "1" ]; then
+  bash scripts/setup-rllib.sh
+  phase ".venv-rllib ready"
 fi
 echo "setup: done (.venv ready) in $((SECONDS - SETUP_START)) s"

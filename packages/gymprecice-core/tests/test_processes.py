@@ -258,14 +258,24 @@ def test_terminate_after_exit_kills_leftover_background_processes(tmp_path):
 # -- registry ----------------------------------------------------------------------------
 
 
+def test_bare_add_records_the_leaders_start_time(tmp_path):
+    """A record that proves nothing is never signalled, so add(pid) proves it at once."""
+    from gymprecice.pidregistry import process_starttime
+
+    registry = PidRegistry(tmp_path)
+    registry.add(os.getpid())
+    [record] = registry.entries()
+    assert record.starttime == process_starttime(os.getpid()) is not None
+
+
 def test_registry_records_and_forgets_groups(tmp_path):
     registry = PidRegistry(tmp_path)
     assert registry.entries() == []
     registry.add(11, starttime=5, token="ab")
-    registry.add(12)
+    registry.add(12, token="ef")
     registry.add(11, starttime=6, token="cd")  # replaces the older record
     assert registry.path == tmp_path / ".gymprecice" / "pids"
-    assert registry.path.read_text() == "12 - -\n11 6 cd\n"
+    assert registry.path.read_text() == "12 - ef\n11 6 cd\n"
     assert [line.split()[0] for line in registry.path.read_text().splitlines()] == ["12", "11"]
     registry.remove(12, 99)
     assert registry.pgids() == [11]

@@ -214,6 +214,7 @@ def test_missing_elasticity_says_how_to_get_it(
     env_dir: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    monkeypatch.setenv("GYMPRECICE_STACK_PREFIX", str(tmp_path / "no-stack"))
     with pytest.raises(CaseError) as caught:
         plugin.gymprecice_launch_solver(context(env_dir))
     message = str(caught.value)
@@ -270,6 +271,7 @@ def test_doctor_reports_library_and_program(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     monkeypatch.setenv("PATH", str(tmp_path))
+    monkeypatch.setenv("GYMPRECICE_STACK_PREFIX", str(tmp_path / "no-stack"))
     monkeypatch.setenv("DEAL_II_DIR", str(tmp_path / "dealii"))
     header = tmp_path / "dealii/include/deal.II/base/config.h"
     header.parent.mkdir(parents=True)
@@ -314,3 +316,17 @@ def test_real_elasticity_starts_on_the_prepared_case(env_dir: Path, tmp_path: Pa
     assert "ParameterHandler" not in text
     assert "Number of active cells" in text, text[-2000:]
     assert "communication to coupling partner" in text, text[-2000:]
+
+
+def test_elasticity_built_by_gymprecice_install_is_found_without_path(
+    env_dir: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    stack = tmp_path / "stack"
+    program = stack / "bin" / "elasticity"
+    program.parent.mkdir(parents=True)
+    program.write_text("#!/bin/sh\n")
+    program.chmod(0o755)
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    monkeypatch.setenv("GYMPRECICE_STACK_PREFIX", str(stack))
+    spec = plugin.gymprecice_launch_solver(context(env_dir))
+    assert spec.argv[0] == str(program)
