@@ -11,12 +11,17 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
-from gymprecice.stack import BuildContext, BuildError, InstallStep, SourceArchive
+from gymprecice.stack import (
+    BuildContext,
+    BuildError,
+    InstallStep,
+    SourceArchive,
+    command_output,
+)
 
 PRECICE_VERSION = "3.4.1"
 PYPRECICE_VERSION = "3.4.0"
@@ -49,21 +54,11 @@ BUILD_NEEDS = (
 
 def _pkg_config_precice() -> str | None:
     """A preCICE v3 that ``pkg-config`` finds outside the stack prefix, described."""
-    if shutil.which("pkg-config") is None:
+    version = command_output(["pkg-config", "--modversion", "libprecice"])
+    if not version or not version.startswith("3."):
         return None
-    try:
-        out = subprocess.run(
-            ["pkg-config", "--modversion", "--variable=libdir", "libprecice"],
-            capture_output=True,
-            text=True,
-            timeout=20,
-        )
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    lines = out.stdout.split()
-    if out.returncode != 0 or not lines or not lines[0].startswith("3."):
-        return None
-    return f"preCICE {lines[0]} (pkg-config, {lines[-1]})"
+    libdir = command_output(["pkg-config", "--variable=libdir", "libprecice"])
+    return f"preCICE {version} (pkg-config, {libdir})"
 
 
 def _precice_built(prefix: Path) -> Path | None:

@@ -50,6 +50,7 @@ __all__ = [
     "BuildError",
     "InstallStep",
     "SourceArchive",
+    "command_output",
     "install",
     "solver_environment",
     "stack_prefix",
@@ -97,6 +98,18 @@ def solver_environment(
         if str(folder) not in parts:
             changes[var] = os.pathsep.join([*parts, str(folder)])
     return changes
+
+
+def command_output(argv: Sequence[str], timeout: float = 20) -> str | None:
+    """stdout of a small probe command (``pkg-config``, ``dpkg-query``), or ``None`` if it
+    is missing, fails or hangs: the probes only decide whether something is there."""
+    try:
+        proc = subprocess.run(
+            list(argv), capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return proc.stdout.strip() if proc.returncode == 0 else None
 
 
 def stack_which(program: str, environ: Mapping[str, str] | None = None) -> str | None:

@@ -22,12 +22,18 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import subprocess
 import tarfile
 from pathlib import Path
 
 from gymprecice.errors import GymPreciceError
-from gymprecice.stack import BuildContext, BuildError, InstallStep, SourceArchive, stack_prefix
+from gymprecice.stack import (
+    BuildContext,
+    BuildError,
+    InstallStep,
+    SourceArchive,
+    command_output,
+    stack_prefix,
+)
 from gymprecice_openfoam.installation import ADAPTER_LIBRARY, find_openfoam
 
 ADAPTER_VERSION = "1.3.1"
@@ -75,17 +81,9 @@ NO_HEADERS = (
 
 def _debian_openfoam_version() -> str | None:
     """Debian's version of the installed ``openfoam`` package (``1912.200626-1``), if any."""
-    try:
-        out = subprocess.run(
-            ["dpkg-query", "-W", "--showformat=${Status}\t${Version}", "openfoam"],
-            capture_output=True,
-            text=True,
-            timeout=20,
-        )
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    status, _, version = out.stdout.partition("\t")
-    return version if out.returncode == 0 and status.endswith(" installed") else None
+    out = command_output(["dpkg-query", "-W", "--showformat=${Status}\t${Version}", "openfoam"])
+    status, _, version = (out or "").partition("\t")
+    return version if status.endswith(" installed") and version else None
 
 
 def _built(prefix: Path) -> Path | None:
