@@ -189,6 +189,18 @@ def test_constants_are_constructor_arguments(tmp_path):
         JetCylinderEnv(options=str(env.config.case_dir), double=True)
 
 
+def test_lift_measure_abs_penalises_the_mean_lift_magnitude(tmp_path):
+    env = JetCylinderEnv(double=True, run_root=tmp_path / "runs", lift_measure="abs")
+    # a lift swinging about zero: |<Cl>| = 0, <|Cl|> = 2
+    env._history = np.array([[0.1, 3.0, 2.0], [0.2, 3.0, -2.0]])
+    assert env._get_reward() == pytest.approx(env.reward_offset - 3.0 - env.lift_penalty * 2.0)
+    env.lift_measure = "mean"
+    assert env._get_reward() == pytest.approx(env.reward_offset - 3.0)
+    env.close()
+    with pytest.raises(ValueError, match="lift_measure"):
+        JetCylinderEnv(double=True, run_root=tmp_path / "runs", lift_measure="rms")
+
+
 def test_rotating_wall_moves_tangentially_at_omega_r(tmp_path):
     env = RotatingCylinderEnv(double=True, run_root=tmp_path / "runs")
     assert env.action_space.high[0] == pytest.approx(5.0)
