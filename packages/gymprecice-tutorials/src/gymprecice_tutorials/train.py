@@ -211,6 +211,7 @@ def train(
         stop_signals_interrupt,
     )
     from gymprecice_tutorials.evaluation_callback import eval_callback
+    from gymprecice_tutorials.prerun_progress import PrerunProgress
 
     algo = params["algo"]
     prefix = algo
@@ -284,8 +285,15 @@ def train(
         started = time.monotonic()
         interrupted: str | None = None
         if remaining > 0:
+            print(
+                f"gymprecice train: {env.name}, {n_envs} env(s), {algo.upper()} to "
+                f"{target:,} steps; output in {out} (env logs: {out / 'workers'}). The first "
+                "reset prepares each case (for OpenFOAM a pre-run to a developed flow, cached "
+                "for later runs): minutes on real solvers.",
+                flush=True,
+            )
             try:
-                with stop_signals_interrupt():
+                with stop_signals_interrupt(), PrerunProgress(out / "envs"):
                     model.learn(
                         total_timesteps=remaining,
                         callback=CallbackList(callbacks),
