@@ -340,27 +340,28 @@ MID_FAULTS = [
 ]
 
 
-@pytest.mark.parametrize(
-    ("library", "armed", "action", "kind", "type_suffix", "tail"),
-    with_real_variants(MID_FAULTS),
-)
-def test_fault_mid_episode(chaos, caplog, library, armed, action, kind, type_suffix, tail):
-    caplog.set_level(logging.WARNING, logger="gymprecice.vector")
-    venv = chaos.make()
-    watcher = watch(venv, FAILED)
+def fail_mid_episode(
+    chaos: Chaos, venv, armed, action, kind: str, type_suffix: str, tail: str
+) -> tuple[dict, list[int], float]:
+    """Two good steps, the fault, then steps until env 1's episode ends in a failure.
+
+    Asserts what every backend must give: the failure surfaces within a few steps as a
+    truncation of env 1 alone, with a zero reward, env 1 already in its next episode and
+    its last observation in ``final_obs``, while env 0 goes on. Returns the failure, the
+    solver groups env 1 had before the fault and the seconds from the fault to the report.
+    """
     if armed is not None:
         inject(chaos.faults, FAILED, "run", armed[0], **armed[1])
     venv.reset(seed=0)
     for _ in range(2):
         obs, _, _, truncs, infos = venv.step(chaos.act())
         assert "failure" not in infos
-    before = obs.copy()
-    solver_groups_before = solver_groups(chaos.env_dir(FAILED))
+    last = obs.copy()
+    groups_before = solver_groups(chaos.env_dir(FAILED))
     if action is not None:
         action(chaos)
     started = time.monotonic()
     failure = None
-    last = before
     for _ in range(6):  # an armed fault fires within a few steps
         obs, rewards, terms, truncs, infos = venv.step(chaos.act())
         assert not truncs[0]
@@ -371,13 +372,28 @@ def test_fault_mid_episode(chaos, caplog, library, armed, action, kind, type_suf
             break
         last = obs.copy()
     assert failure is not None, "the fault never surfaced"
-    assert time.monotonic() - started < REPORT_BOUND_S
+    seconds = time.monotonic() - started
     assert rewards[FAILED] == 0.0 and not terms.any()
     assert obs[FAILED, 4] == 0.0  # env 1 already runs its next episode
     assert np.array_equal(infos["final_obs"][FAILED], last[FAILED])  # last obs it saw
     assert obs[0, 4] > last[0, 4]  # env 0 went on
+    return failure, groups_before, seconds
+
+
+@pytest.mark.parametrize(
+    ("library", "armed", "action", "kind", "type_suffix", "tail"),
+    with_real_variants(MID_FAULTS),
+)
+def test_fault_mid_episode(chaos, caplog, library, armed, action, kind, type_suffix, tail):
+    caplog.set_level(logging.WARNING, logger="gymprecice.vector")
+    venv = chaos.make()
+    watcher = watch(venv, FAILED)
+    failure, groups_before, seconds = fail_mid_episode(
+        chaos, venv, armed, action, kind, type_suffix, tail
+    )
+    assert seconds < REPORT_BOUND_S
     if kind != "error":  # the vector env itself killed the recorded solver groups
-        assert set(failure["killed_groups"]) >= set(solver_groups_before)
+        assert set(failure["killed_groups"]) >= set(groups_before)
     finish(chaos, watcher, caplog)
 
 

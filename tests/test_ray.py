@@ -31,7 +31,7 @@ pytestmark = pytest.mark.skipif(
 
 from ray.cluster_utils import Cluster  # noqa: E402
 
-from gymprecice.testing.chaos import CylinderEnv, inject, pid_alive  # noqa: E402
+from gymprecice.testing.chaos import CylinderEnv, pid_alive  # noqa: E402
 from gymprecice.vector import ResilientVectorEnv  # noqa: E402
 from gymprecice.vector.ray import RayBackend, solver_cpus  # noqa: E402
 from tests.test_chaos import (  # noqa: E402
@@ -39,7 +39,7 @@ from tests.test_chaos import (  # noqa: E402
     MID_FAULTS,
     STEP_TIMEOUT_S,
     Chaos,
-    check_failure,
+    fail_mid_episode,
     finish,
     watch,
 )
@@ -157,29 +157,7 @@ def test_fault_mid_episode_on_a_remote_node(
     venv = chaos.make()
     assert cluster.head_node.node_id not in node_ids(venv)
     watcher = watch(venv, FAILED)
-    if armed is not None:
-        inject(chaos.faults, FAILED, "run", armed[0], **armed[1])
-    venv.reset(seed=0)
-    for _ in range(2):
-        obs, _, _, truncs, infos = venv.step(chaos.act())
-        assert "failure" not in infos
-    if action is not None:
-        action(chaos)
-    failure, last = None, obs.copy()
-    for _ in range(6):  # an armed fault fires within a few steps
-        obs, rewards, terms, truncs, infos = venv.step(chaos.act())
-        assert not truncs[0]
-        if truncs[FAILED]:
-            failure = check_failure(
-                infos, FAILED, phase="step", kind=kind, type_suffix=type_suffix, tail=tail
-            )
-            break
-        last = obs.copy()
-    assert failure is not None, "the fault never surfaced"
-    assert rewards[FAILED] == 0.0 and not terms.any()
-    assert obs[FAILED, 4] == 0.0
-    assert np.array_equal(infos["final_obs"][FAILED], last[FAILED])
-    assert obs[0, 4] > last[0, 4]
+    fail_mid_episode(chaos, venv, armed, action, kind, type_suffix, tail)
     finish(chaos, watcher, caplog)
 
 
