@@ -28,7 +28,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Itera
     if not report.skipped or os.environ.get(REQUIRE_REAL_ENV, "0") in ("", "0"):
         return
     markers = [m for m in REAL_MARKERS if item.get_closest_marker(m) is not None]
-    if not markers or item.get_closest_marker("real_optional") is not None:
+    if not markers:
         return
     reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
     report.outcome = "failed"
