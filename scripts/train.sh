@@ -1,12 +1,31 @@
 #!/usr/bin/env bash
-# The main job: train a PPO controller on the jet cylinder (JetCylinder-v0).
+# The main job: train a PPO controller that lowers the jet cylinder's drag.
 #
-#   bash scripts/train.sh [extra `gymprecice train` options, e.g. --n-envs 8 --timesteps 200000]
+#   bash scripts/train.sh [extra `gymprecice train` options]     # the training case, ~2 h on 2 cores
+#   bash scripts/train.sh --paper [extra options]                 # the paper's full-fidelity run
+#
+# Default: JetCylinderFast-v0 (the jet cylinder's training case: coarse mesh, 1 s episodes
+# from a library of start snapshots, Rabault's reward and jet bound), two environments of
+# one solver rank each, observation and reward normalisation, 48,000 actions (1,200
+# episodes). Results, commands and costs: docs/training.md. Then:
+#
+#   .venv/bin/gymprecice evaluate jet-cylinder-fast        # 10 s from a held-out start
+#   .venv/bin/gymprecice baseline jet-cylinder-fast
+#
+# --paper: JetCylinder-v0 as in Gym-preCICE (17,416-cell PIMPLE mesh, 2 ranks per
+# environment, 2 s episodes, 1,000 episodes on 24 environments = 48 cores); about 38 hours
+# with one environment on 2 cores (2 min 16 s per episode, docs/training.md).
 #
 # Sets up the machine like the tests do, then checks it with `gymprecice doctor`: training
 # couples to real OpenFOAM through preCICE, so without preCICE (and the OpenFOAM-preCICE
-# adapter) it stops at once and says what to install.
+# adapter) it stops at once and says what to install. Ctrl-C saves; the same command resumes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-exec .venv/bin/gymprecice train jet-cylinder --require-solvers "$@"
+if [[ "${1:-}" == "--paper" ]]; then
+    shift
+    exec .venv/bin/gymprecice train jet-cylinder --require-solvers --n-envs 24 \
+        --timesteps 80000 "$@"
+fi
+exec .venv/bin/gymprecice train jet-cylinder-fast --require-solvers --n-envs 2 --normalize \
+    --timesteps 48000 "$@"

@@ -54,6 +54,22 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             action_bound=5.0,
         ),
         TutorialEnv(
+            "jet-cylinder-fast",
+            "gymprecice/JetCylinderFast-v0",
+            "gymprecice_tutorials.fast_cases:JetCylinderFastEnv",
+            "the jet cylinder's training case: coarse mesh, 1 s episodes from eight start "
+            "snapshots, Rabault's reward and jet bound (learns in about 2 hours on 2 cores)",
+            action_bound=2.5e-5,
+        ),
+        TutorialEnv(
+            "rotating-cylinder-fast",
+            "gymprecice/RotatingCylinderFast-v0",
+            "gymprecice_tutorials.fast_cases:RotatingCylinderFastEnv",
+            "the rotating cylinder on the jet cylinder's training case",
+            action_unit="rad/s",
+            action_bound=2.0,
+        ),
+        TutorialEnv(
             "quickstart",
             "gymprecice/Quickstart-v0",
             "gymprecice_tutorials.quickstart.environment:QuickstartEnv",

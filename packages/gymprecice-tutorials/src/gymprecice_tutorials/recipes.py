@@ -213,6 +213,26 @@ CASES: dict[str, CaseSpec] = {
     ),
 }
 
+#: The training case of the ``*-fast`` environments: the quick start's coarse mesh (3,580
+#: cells) with PISO on one rank at twice the time step, one preCICE time window per action
+#: (25 substeps of 1e-3 s), 1 s episodes, and eight start snapshots spread over one
+#: shedding period (two held out for evaluation). Half the CPU of the quick start per
+#: simulated second; its physics against Schäfer-Turek is in docs/training.md.
+FAST_TRAINING = {
+    "resolution": Resolution.coarse(),
+    "flow": Flow(dt=1e-3, outer_correctors=1),
+    "steps_per_action": 25,
+    "actions_per_episode": 40,
+    "coupling": "action",
+    "prerun_end_time": 5.0,
+    "snapshots": (4.7, 4.74, 4.78, 4.82, 4.86, 4.9, 4.94, 4.98),
+    "n_procs": 1,
+}
+CASES["jet_cylinder_fast"] = CaseSpec(name="jet_cylinder_fast", control="jets", **FAST_TRAINING)
+CASES["rotating_cylinder_fast"] = CaseSpec(
+    name="rotating_cylinder_fast", control="rotation", **FAST_TRAINING
+)
+
 
 def case_spec(name: str, **overrides: object) -> CaseSpec:
     """The packaged spec ``name`` with fields replaced by ``overrides``."""

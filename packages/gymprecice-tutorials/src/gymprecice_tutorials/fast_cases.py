@@ -1,0 +1,88 @@
+"""JetCylinderFast-v0 and RotatingCylinderFast-v0: the cylinders set up to learn in hours.
+
+The paper's jet cylinder (Rabault et al. 2019; Gym-preCICE) needs about a thousand 2 s
+episodes on its 17,416-cell PIMPLE mesh: two days on two cores. These environments train
+the same controllers on the recipe ``*_fast`` (:data:`gymprecice_tutorials.recipes.FAST_TRAINING`):
+
+* **the training case**: the coarse mesh (3,580 cells), PISO on one rank, Δt = 1e-3 s,
+  one preCICE time window per action (0.025 s, the solver subcycles in it) and 1 s
+  episodes (40 actions, about three shedding periods) that start from a library of eight
+  developed-flow snapshots over one shedding period; every fourth is held out for
+  ``evaluate`` / ``baseline`` / ``open-loop``, so training never sees the evaluation's start;
+* **Rabault's reward**: ``reward_offset - <Cd> - lift_penalty |<Cl>|`` with the means over
+  the last action (0.025 s), not over a shedding period: a lift that the action swings
+  within a period then costs what it costs, and the reward answers the action that caused
+  it; the offset is this case's own uncontrolled mean Cd, so "no control" scores about 0;
+* **Rabault's actuation**: the jets' flow-rate bound is :data:`MAX_FLOW_RATE_FAST`
+  (jet speed up to about 0.3 Umean, where the Gym-preCICE bound of 2.5e-4 m³/s gives jets
+  three times faster than the mean flow); the rotating cylinder's spin is bounded to a
+  wall speed of 0.1 Umean. Large actuators let an untrained policy shake the cylinder with
+  lift swings ten times the shedding's and make the bang-bang answer the easiest to find.
+
+Everything else (observation, actuators, keyword arguments) is the parent environment's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar
+
+from gymprecice_tutorials.jet_cylinder.environment import JetCylinderEnv
+from gymprecice_tutorials.rotating_cylinder.environment import RotatingCylinderEnv
+
+__all__ = [
+    "FAST_REWARD_OFFSET",
+    "MAX_FLOW_RATE_FAST",
+    "MAX_OMEGA_FAST",
+    "JetCylinderFastEnv",
+    "RotatingCylinderFastEnv",
+]
+
+#: Jet flow-rate bound (m³/s): 2.5e-5 over the 10° jet's 8.7e-5 m² opening is 0.29 m/s,
+#: 0.29 Umean (Rabault et al.'s own bound is 0.11 Umean).
+MAX_FLOW_RATE_FAST = 2.5e-5
+#: Spin bound (rad/s): a wall speed omega * R of 0.1 Umean.
+MAX_OMEGA_FAST = 2.0
+#: The training case's uncontrolled mean Cd (10 s from a held-out snapshot, docs/training.md).
+FAST_REWARD_OFFSET = 3.2195
+#: The reward's averaging window: one action (25 steps of 1e-3 s).
+ACTION_WINDOW = 0.025
+
+
+def _fast_defaults(kwargs: dict[str, Any]) -> dict[str, Any]:
+    kwargs.setdefault("reward_offset", FAST_REWARD_OFFSET)
+    kwargs.setdefault("averaging_window", ACTION_WINDOW)
+    return kwargs
+
+
+class JetCylinderFastEnv(JetCylinderEnv):
+    """:class:`JetCylinderEnv` on the training case, with Rabault's reward and jet bound."""
+
+    recipe: ClassVar[str] = "jet_cylinder_fast"
+
+    def __init__(
+        self,
+        options: Mapping[str, Any] | str | Path | None = None,
+        idx: int = 0,
+        *,
+        max_flow_rate: float = MAX_FLOW_RATE_FAST,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(options, idx, max_flow_rate=max_flow_rate, **_fast_defaults(kwargs))
+
+
+class RotatingCylinderFastEnv(RotatingCylinderEnv):
+    """:class:`RotatingCylinderEnv` on the training case, with Rabault's reward."""
+
+    recipe: ClassVar[str] = "rotating_cylinder_fast"
+
+    def __init__(
+        self,
+        options: Mapping[str, Any] | str | Path | None = None,
+        idx: int = 0,
+        *,
+        max_omega: float = MAX_OMEGA_FAST,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(options, idx, max_omega=max_omega, **_fast_defaults(kwargs))
