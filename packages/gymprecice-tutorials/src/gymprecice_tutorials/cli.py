@@ -1,4 +1,4 @@
-"""``gymprecice train | evaluate | baseline | open-loop | plot``: the tutorials' commands.
+"""``gymprecice train | evaluate | baseline | open-loop | plot | ship-policy | policies``.
 
 Added to the ``gymprecice`` command line by the tutorials plugin. Every command that runs
 an environment writes into one output directory (``--out``, default
@@ -11,6 +11,9 @@ case file hashes, seeds, command line), so the directory alone says how it was m
     gymprecice open-loop jet-cylinder --amplitude 0.5 --frequency 3
     gymprecice plot runs/jet-cylinder/train runs/jet-cylinder/evaluate \\
         --baseline runs/jet-cylinder/baseline
+    gymprecice ship-policy runs/jet-cylinder/train --name jet-cylinder \\
+        --evaluation runs/jet-cylinder/evaluate
+    gymprecice evaluate jet-cylinder --policy shipped     # no training needed
 
 ``--double`` runs any of them against gymprecice's preCICE test double with a scripted
 fake flow (seconds, no solver needed). Without it a command stops at once, in one line,
@@ -118,6 +121,7 @@ def add_commands(sub: Any) -> None:
     _train_parser(sub)
     _rollout_parsers(sub)
     _plot_parser(sub)
+    _policy_parsers(sub)
 
 
 def _train_parser(sub: Any) -> None:
@@ -237,10 +241,16 @@ def _rollout_parsers(sub: Any) -> None:
     )
     _env_options(p, rollout=True)
     p.add_argument(
+        "--policy",
         "--model",
-        type=Path,
-        help="model .zip, or a training directory: its model.zip, else its newest "
-        "checkpoint (None: runs/<env>/train)",
+        dest="policy",
+        metavar="NAME|PATH",
+        default=None,
+        help="the policy: a model .zip, a training directory (its model.zip, else its "
+        "newest checkpoint), the name of a policy shipped with the package (`gymprecice "
+        "policies` lists them; ./NAME for a directory of that name) or `shipped` (the one "
+        "shipped for ENV). On another env than its training env a policy keeps its "
+        "training action bound (None: runs/<env>/train)",
     )
     p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
     p.add_argument("--stochastic", action="store_true", help="sample actions instead")
@@ -319,6 +329,56 @@ def _plot_parser(sub: Any) -> None:
         help="episode of the rollouts to draw (None: each run's first); titles say which",
     )
     p.set_defaults(func=_plot)
+
+
+def _policy_parsers(sub: Any) -> None:
+    p = _parser(
+        sub,
+        "ship-policy",
+        help="copy a training run's final policy into the package (small: for evaluation)",
+        description="Copy a `gymprecice train` run's final model (its model.zip, else its "
+        "newest checkpoint) into the package's shipped policies as NAME: the model without "
+        "the optimizer state (PPO.load still reads it), the VecNormalize statistics and "
+        "policy.json (training env and action bound, training command, timesteps, "
+        "wall-clock time, source revision, checksums, and the --evaluation result). Then "
+        "`gymprecice evaluate ENV --policy NAME` runs it without training.",
+    )
+    p.add_argument("train_dir", type=Path, metavar="TRAIN_DIR", help="a training output")
+    p.add_argument("--name", default=None, help="the policy's name (None: the training env's name)")
+    p.add_argument(
+        "--evaluation",
+        type=Path,
+        default=None,
+        metavar="RUN",
+        help="a `gymprecice evaluate` output of this model, whose result is recorded",
+    )
+    p.add_argument(
+        "--into",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="ship into DIR (None: $GYMPRECICE_POLICIES_DIR, else the package's policies/)",
+    )
+    p.add_argument("--force", action="store_true", help="replace a policy of that name")
+    p.set_defaults(func=_policies("ship"))
+
+    p = _parser(
+        sub,
+        "policies",
+        help="list the trained policies shipped with the package",
+        description="One line per shipped policy: its training env, steps, action bound "
+        "and evaluated mean Cd. Evaluate one with `gymprecice evaluate ENV --policy NAME`.",
+    )
+    p.set_defaults(func=_policies("list"))
+
+
+def _policies(command: str) -> Any:
+    def handler(args: argparse.Namespace) -> int:
+        from gymprecice_tutorials.shipped_policies import list_command, ship_command
+
+        return ship_command(args) if command == "ship" else list_command(args)
+
+    return handler
 
 
 def _run(command: str) -> Any:

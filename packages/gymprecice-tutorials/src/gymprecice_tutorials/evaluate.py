@@ -20,6 +20,11 @@ action: what one would deploy), over a horizon longer than the training episodes
 by default against 2 s) to show that the control holds; ``baseline`` is the uncontrolled
 flow (zero action: jets closed, cylinder at rest) that a controller is judged against;
 ``open-loop`` is a sinusoid, the classic forcing a learned controller should beat.
+
+``evaluate --policy`` names the policy: a training directory or model file, a policy
+shipped with the package by name, or ``shipped`` (the one shipped for the env). The env
+is built with the action bound the policy was trained with, also on another env (a
+transfer, said in one line); see :mod:`gymprecice_tutorials.shipped_policies`.
 """
 
 from __future__ import annotations
@@ -37,9 +42,17 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice_tutorials.environments import TutorialEnv, find_environment
-from gymprecice_tutorials.envs import find_model, load_model, make_env_checked, vecnormalize_path
+from gymprecice_tutorials.envs import load_model, make_env_checked, vecnormalize_path
 from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
 from gymprecice_tutorials.requirements import require_solvers
+from gymprecice_tutorials.shipped_policies import (
+    Policy,
+    PolicyError,
+    check_policy_env,
+    policy_env_kwargs,
+    resolve_policy,
+    shipped_policies,
+)
 from gymprecice_tutorials.train import build_env_kwargs, default_out
 
 __all__ = [
@@ -194,18 +207,23 @@ def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
         writer.writerows(rows)
 
 
-def _model_path(args: argparse.Namespace, env: TutorialEnv) -> Path:
-    """The model to evaluate; says so when a directory's newest checkpoint stands in."""
+def _policy(args: argparse.Namespace, env: TutorialEnv) -> Policy:
+    """The policy to evaluate (``--policy``/``--model``, default ``runs/<env>/train``)."""
+    spec = getattr(args, "policy", None)
     try:
-        path, note = find_model(args.model or default_out(env, "train"))
-    except FileNotFoundError as exc:
-        raise SystemExit(
-            f"gymprecice evaluate: {exc}; train one first (`gymprecice train {env.name}`) "
-            f"or pass --model"
-        ) from None
-    if note:
+        policy = resolve_policy(spec if spec is not None else default_out(env, "train"), env)
+    except PolicyError as exc:
+        hint = ""
+        if spec is None:
+            names = ", ".join(shipped_policies()) or "none yet"
+            hint = (
+                f"; train one first (`gymprecice train {env.name}`) or pass --policy "
+                f"NAME|PATH (shipped policies: {names})"
+            )
+        raise SystemExit(f"gymprecice evaluate: {exc}{hint}") from None
+    for note in policy.notes:
         print(f"gymprecice evaluate: {note}")
-    return path
+    return policy
 
 
 def _read_baseline(path: Path) -> dict[str, Any]:
@@ -245,7 +263,18 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
     out = (args.out or default_out(env_info, command)).resolve()
     kwargs = build_env_kwargs(args, env_info, out)
     baseline = _read_baseline(args.baseline) if getattr(args, "baseline", None) else None
-    model_path = _model_path(args, env_info) if command == "evaluate" else None
+    policy = _policy(args, env_info) if command == "evaluate" else None
+    applied: dict[str, Any] = {}
+    if policy is not None:
+        # the policy acts in [-1, 1]: the env must have the bound it was trained with
+        try:
+            applied, lines = policy_env_kwargs(policy, env_info, args.env_kwargs or {})
+        except PolicyError as exc:
+            print(f"gymprecice evaluate: {exc}", file=sys.stderr)
+            return 2
+        for line in lines:
+            print(f"gymprecice evaluate: {line}")
+        kwargs.update(applied)
     if not args.double:
         status = require_solvers(env_info, command, verbose=args.require_solvers)
         if status:
@@ -261,8 +290,14 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
     }
     try:
         if command == "evaluate":
-            assert model_path is not None
+            assert policy is not None
+            model_path = policy.model
             model = load_model(model_path)
+            try:
+                check_policy_env(policy, model, env, env_info.name, applied)
+            except PolicyError as exc:
+                print(f"gymprecice evaluate: {exc}", file=sys.stderr)
+                return 2
             normalizer = _normalizer(model_path)
             deterministic = not args.stochastic
 
@@ -275,6 +310,7 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
             settings.update(
                 {
                     "model": str(model_path.resolve()),
+                    "policy": policy.describe(),
                     "model_sha256": file_sha256(model_path),
                     "normalization": str(vecnormalize_path(model_path)) if normalizer else None,
                     "deterministic": deterministic,

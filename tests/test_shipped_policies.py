@@ -1,0 +1,414 @@
+"""Trained policies shipped inside gymprecice-tutorials: they load, run, keep their bound.
+
+* every policy in the package's ``policies/`` loads (``PPO.load`` on the stripped model,
+  checksums as shipped) and runs a short deterministic episode on the preCICE test double
+  of the env it was trained on;
+* the round trip on the double: a policy trained in seconds (with an action bound of its
+  own, 1e-5 m³/s against the env's 2.5e-4) is shipped into a temporary directory
+  (``GYMPRECICE_POLICIES_DIR``), found by name and as ``shipped``, evaluated through the
+  command line, transferred to another env with its training bound, and refused where it
+  cannot run;
+* on the real stack (``precice``/``openfoam``): the shipped jet-cylinder-fast policy
+  lowers the mean drag of 2 s from a held-out snapshot below the uncontrolled flow's.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import gymprecice_tutorials
+from gymprecice_tutorials.manifest import file_sha256
+from gymprecice_tutorials.shipped_policies import (
+    POLICIES_DIR_ENV,
+    PolicyError,
+    load_shipped,
+    resolve_policy,
+    ship_policy,
+    shipped_policies,
+)
+
+#: The package's own policies (not a ``GYMPRECICE_POLICIES_DIR`` of the environment).
+PACKAGE_POLICIES = Path(gymprecice_tutorials.__file__).resolve().parent / "policies"
+SHIPPED = list(shipped_policies(PACKAGE_POLICIES))
+#: What a shipped policy may weigh (the 512x512 PPO of the cylinders: about 2.5 MB).
+MAX_BYTES = 3_000_000
+#: The tiny policy's own bound, a tenth of the jet cylinders' default 2.5e-4.
+BOUND = 1e-5
+
+
+def _cli(cwd: Path, *args: str, policies: Path | None = None, timeout: float = 240) -> Any:
+    env = dict(os.environ)
+    env.pop(POLICIES_DIR_ENV, None)
+    if policies is not None:
+        env[POLICIES_DIR_ENV] = str(policies)
+    return subprocess.run(
+        [sys.executable, "-m", "gymprecice", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+def _ok(proc: subprocess.CompletedProcess[str]) -> str:
+    assert proc.returncode == 0, f"exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}"
+    return proc.stdout + proc.stderr
+
+
+def _fails(proc: subprocess.CompletedProcess[str]) -> str:
+    """The one line a refused command prints."""
+    assert proc.returncode != 0, proc.stdout
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    return lines[0]
+
+
+def _actions(run: Path) -> np.ndarray:
+    with (run / "history.csv").open() as handle:
+        return np.array([float(r["action_0"]) for r in csv.DictReader(handle)])
+
+
+# -- the policies in the package ----------------------------------------------------------
+
+
+def test_a_policy_is_shipped():
+    """Fails until a trained policy is shipped (`gymprecice ship-policy TRAIN_DIR`)."""
+    assert SHIPPED, (
+        f"no policy in {PACKAGE_POLICIES}; ship the jet-cylinder-fast run with "
+        "`gymprecice ship-policy runs/jet-cylinder-fast/train --name jet-cylinder-fast "
+        "--evaluation runs/jet-cylinder-fast/evaluate`"
+    )
+
+
+@pytest.mark.timeout(180)
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_policy_loads_and_runs_on_its_training_env_double(name: str, tmp_path: Path):
+    meta = shipped_policies(PACKAGE_POLICIES)[name]
+    for filename, record in meta["files"].items():
+        assert (PACKAGE_POLICIES / name / filename).stat().st_size == record["bytes"]
+    assert sum(r["bytes"] for r in meta["files"].values()) < MAX_BYTES
+    assert meta["env"]["name"] and meta["env_kwargs"] and meta["training"]["timesteps"] > 0
+    venv, model = load_shipped(
+        name,
+        meta["env"]["name"],
+        directory=PACKAGE_POLICIES,
+        double=True,
+        episode_time=0.1,
+        run_root=str(tmp_path),
+    )
+    try:
+        assert type(model).__name__.lower() == meta["algorithm"]
+        assert list(venv.observation_space.shape) == meta["observation_shape"]
+        inner = venv.unwrapped.envs[0].unwrapped
+        for key, value in meta["env_kwargs"].items():
+            assert getattr(inner, key) == pytest.approx(value)
+        obs = venv.reset()
+        bound = max(abs(v) for v in meta["action_space"]["high"] + meta["action_space"]["low"])
+        for _ in range(200):
+            action, _ = model.predict(obs, deterministic=True)
+            obs, _, done, infos = venv.step(action)
+            applied = np.asarray(infos[0]["action"], dtype=float)
+            assert np.all(np.abs(applied) <= bound * (1 + 1e-6)) and np.isfinite(obs).all()
+            if done[0]:
+                break
+        else:
+            pytest.fail("the episode did not end")
+    finally:
+        venv.close()
+
+
+# -- the round trip on the double ---------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A policy trained for seconds on the double with its own bound, evaluated, shipped
+    as ``tiny`` and as ``quickstart`` (the one ``--policy shipped`` finds)."""
+    root = tmp_path_factory.mktemp("shipped")
+    policies = root / "policies"
+    _ok(
+        _cli(
+            root,
+            "train",
+            "quickstart",
+            "--double",
+            "--normalize",
+            "--net",
+            "16,16",
+            "--n-steps",
+            "8",
+            "--batch-size",
+            "8",
+            "--n-epochs",
+            "1",
+            "--timesteps",
+            "16",
+            "--episode-time",
+            "0.1",
+            "--env-kwargs",
+            json.dumps({"max_flow_rate": BOUND}),
+            "--no-progress-bar",
+            "--out",
+            "train",
+        )
+    )
+    common = ["quickstart", "--double", "--episode-time", "0.1"]
+    _ok(_cli(root, "evaluate", *common, "--policy", "train", "--out", "evaluate"))
+    out = _ok(
+        _cli(
+            root,
+            "ship-policy",
+            "train",
+            "--name",
+            "tiny",
+            "--evaluation",
+            "evaluate",
+            policies=policies,
+        )
+    )
+    assert "shipped 'tiny'" in out
+    _ok(_cli(root, "ship-policy", "train", policies=policies))  # named after its env
+    return {"root": root, "policies": policies}
+
+
+def test_shipping_keeps_what_evaluation_needs_and_the_record(tiny):
+    from stable_baselines3 import PPO
+
+    root, policies = tiny["root"], tiny["policies"]
+    assert set(shipped_policies(policies)) == {"quickstart", "tiny"}
+    policy = resolve_policy("tiny", directory=policies)
+    assert policy.model == policies / "tiny" / "model.zip"
+    meta = policy.metadata
+    assert meta["env"] == {"name": "quickstart", "id": "gymprecice/Quickstart-v0"}
+    assert meta["env_kwargs"] == {"max_flow_rate": BOUND}
+    assert meta["action_space"]["high"] == [BOUND] and meta["observation_shape"] == [151]
+    training = meta["training"]
+    assert training["command"].startswith("gymprecice train quickstart --double")
+    assert training["timesteps"] == 16 and training["wall_clock_seconds"] > 0
+    assert training["model_sha256"] == file_sha256(root / "train" / "model.zip")
+    assert training["manifest_model_sha256_matches"] is True
+    assert training["source"] is None or isinstance(training["source"], str)
+    evaluation = meta["evaluation"]
+    assert evaluation["episode_time"] == 0.1 and "mean_Cd" in evaluation["over_episodes"]
+    text = (policies / "tiny" / "policy.json").read_text()
+    assert str(root) not in text  # no machine paths in what ships
+    files = {p.name for p in (policies / "tiny").iterdir()}
+    assert files == {"model.zip", "model_vecnormalize.pkl", "policy.json"}
+    # SB3's own loader reads it; no optimizer moments; acts exactly like the trained model
+    slim = PPO.load(policies / "tiny" / "model.zip", device="cpu")
+    trained = PPO.load(root / "train" / "model.zip", device="cpu")
+    assert not slim.policy.optimizer.state_dict()["state"]
+    assert trained.policy.optimizer.state_dict()["state"]
+    obs = np.random.default_rng(1).normal(size=(5, 151)).astype(np.float32)
+    assert np.array_equal(
+        slim.predict(obs, deterministic=True)[0], trained.predict(obs, deterministic=True)[0]
+    )
+    assert (policies / "tiny" / "model.zip").stat().st_size < (
+        root / "train" / "model.zip"
+    ).stat().st_size
+
+
+def test_evaluate_by_name_and_as_shipped_acts_like_the_training_run(tiny):
+    root, policies = tiny["root"], tiny["policies"]
+    common = ["quickstart", "--double", "--episode-time", "0.1"]
+    _ok(_cli(root, "evaluate", *common, "--policy", "tiny", "--out", "by-name", policies=policies))
+    out = _ok(
+        _cli(
+            root,
+            "evaluate",
+            *common,
+            "--policy",
+            "shipped",
+            "--out",
+            "as-shipped",
+            policies=policies,
+        )
+    )
+    assert "transfer" not in out
+    for run in ("by-name", "as-shipped"):
+        summary = json.loads((root / run / "summary.json").read_text())
+        assert summary["episodes"][0]["steps"] == 4
+        actions = _actions(root / run)
+        assert np.all(np.abs(actions) <= BOUND * (1 + 1e-6)) and np.any(actions != 0)
+        assert np.allclose(actions, _actions(root / "evaluate"), rtol=1e-6, atol=0)
+    settings = json.loads((root / "by-name" / "manifest.json").read_text())["settings"]
+    assert settings["policy"]["name"] == "tiny" and settings["policy"]["source"] == "shipped"
+    assert settings["env_kwargs"]["max_flow_rate"] == BOUND
+    # --model still takes a path
+    _ok(_cli(root, "evaluate", *common, "--model", "train/model.zip", "--out", "model"))
+    assert np.allclose(_actions(root / "model"), _actions(root / "evaluate"), rtol=1e-6, atol=0)
+
+
+def test_transfer_to_another_env_keeps_the_training_bound(tiny, tmp_path):
+    root, policies = tiny["root"], tiny["policies"]
+    out = _ok(
+        _cli(
+            root,
+            "evaluate",
+            "jet-cylinder",
+            "--double",
+            "--episode-time",
+            "0.1",
+            "--policy",
+            "tiny",
+            "--out",
+            "transfer",
+            policies=policies,
+        )
+    )
+    line = next(x for x in out.splitlines() if "transfer" in x)
+    assert "trained on quickstart" in line and "jet-cylinder" in line
+    assert "max_flow_rate=1e-05" in line
+    actions = _actions(root / "transfer")
+    assert np.all(np.abs(actions) <= BOUND * (1 + 1e-6)) and np.any(actions != 0)
+    settings = json.loads((root / "transfer" / "manifest.json").read_text())["settings"]
+    assert settings["env_id"] == "gymprecice/JetCylinder-v0"
+    assert settings["env_kwargs"]["max_flow_rate"] == BOUND
+    # the same from Python
+    venv, _ = load_shipped(
+        "tiny", "jet-cylinder", directory=policies, double=True, run_root=str(tmp_path)
+    )
+    try:
+        assert venv.unwrapped.envs[0].unwrapped.max_flow_rate == BOUND
+    finally:
+        venv.close()
+
+
+def test_unknown_names_other_actuators_and_wrong_shapes_are_refused(tiny, tmp_path):
+    from stable_baselines3 import PPO
+
+    root, policies = tiny["root"], tiny["policies"]
+    common = ["--double", "--episode-time", "0.1", "--out", str(tmp_path / "x")]
+    line = _fails(
+        _cli(root, "evaluate", "quickstart", *common, "--policy", "nope", policies=policies)
+    )
+    assert "no shipped policy 'nope'" in line and "quickstart, tiny" in line
+    line = _fails(
+        _cli(
+            root, "evaluate", "rotating-cylinder", *common, "--policy", "shipped", policies=policies
+        )
+    )
+    assert "no policy is shipped for rotating-cylinder" in line and "tiny" in line
+    line = _fails(
+        _cli(root, "evaluate", "rotating-cylinder", *common, "--policy", "tiny", policies=policies)
+    )
+    assert "has no max_flow_rate" in line
+    # a model of another observation: refused at evaluation and at shipping
+    other = tmp_path / "other"
+    other.mkdir()
+    PPO("MlpPolicy", "Pendulum-v1", policy_kwargs={"net_arch": [8]}, device="cpu").save(
+        other / "model.zip"
+    )
+    line = _fails(
+        _cli(root, "evaluate", "quickstart", *common, "--policy", str(other / "model.zip"))
+    )
+    assert "observations of shape (3,)" in line and "(151,)" in line
+    shutil.copy(root / "train" / "manifest.json", other / "manifest.json")
+    with pytest.raises(PolicyError, match=r"shape \(3,\)"):
+        ship_policy(other, "other", directory=tmp_path / "policies")
+    # names, replacing, an evaluation of another model, a file changed after shipping
+    with pytest.raises(PolicyError, match="shipped already"):
+        ship_policy(root / "train", "tiny", directory=policies)
+    with pytest.raises(PolicyError, match="policy name"):
+        ship_policy(root / "train", "shipped", directory=tmp_path / "policies")
+    elsewhere = tmp_path / "evaluate-elsewhere"
+    shutil.copytree(root / "evaluate", elsewhere)
+    manifest = json.loads((elsewhere / "manifest.json").read_text())
+    manifest["settings"]["model_sha256"] = "0" * 64
+    (elsewhere / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(PolicyError, match="evaluated another model"):
+        ship_policy(root / "train", "x", evaluation=elsewhere, directory=tmp_path / "p")
+    copy = tmp_path / "copied"
+    shutil.copytree(policies, copy)
+    with (copy / "tiny" / "model_vecnormalize.pkl").open("ab") as handle:
+        handle.write(b"\0")
+    with pytest.raises(PolicyError, match="not the file that was shipped"):
+        resolve_policy("tiny", directory=copy)
+
+
+# -- on the real stack ----------------------------------------------------------------------
+
+
+def _missing() -> list[str]:
+    """What the real stack lacks here (empty when preCICE, OpenFOAM and the adapter are)."""
+    missing = []
+    try:
+        import precice
+
+        if not hasattr(precice, "Participant"):
+            missing.append("pyprecice v3")
+    except ImportError:
+        missing.append("pyprecice (the preCICE library and its Python bindings)")
+    if shutil.which("pimpleFoam") is None:
+        missing.append("OpenFOAM (pimpleFoam)")
+    else:
+        from gymprecice.errors import CaseError
+        from gymprecice_openfoam.installation import find_openfoam
+
+        try:
+            adapter = find_openfoam().find_library()
+        except CaseError:
+            adapter = None
+        if adapter is None:
+            missing.append("the OpenFOAM-preCICE adapter (libpreciceAdapterFunctionObject.so)")
+    return missing
+
+
+@pytest.mark.precice
+@pytest.mark.openfoam
+@pytest.mark.slow
+@pytest.mark.timeout(3600)
+def test_shipped_jet_cylinder_fast_policy_lowers_the_drag_on_openfoam(tmp_path: Path):
+    """2 s from the same held-out snapshot: the shipped policy's mean Cd is below the
+    uncontrolled flow's (pre-run and snapshots first: tens of minutes on 2 cores)."""
+    missing = _missing()
+    if missing:
+        pytest.skip("needs " + ", ".join(missing))
+    if "jet-cylinder-fast" not in SHIPPED:
+        pytest.skip("no jet-cylinder-fast policy shipped yet (gymprecice ship-policy)")
+    common = ["jet-cylinder-fast", "--episode-time", "2", "--seed", "0"]
+    _ok(_cli(tmp_path, "baseline", *common, "--out", "baseline", timeout=3000))
+    out = _ok(
+        _cli(
+            tmp_path,
+            "evaluate",
+            *common,
+            "--policy",
+            "shipped",
+            "--baseline",
+            "baseline",
+            "--out",
+            "controlled",
+            timeout=3000,
+        )
+    )
+    assert "transfer" not in out
+    summaries = {
+        run: json.loads((tmp_path / run / "summary.json").read_text())
+        for run in ("baseline", "controlled")
+    }
+    for run in ("baseline", "controlled"):
+        manifest = json.loads((tmp_path / run / "manifest.json").read_text())
+        assert manifest["settings"]["double"] is False
+        assert manifest["settings"]["env_kwargs"]["episode_time"] == 2.0
+    with (
+        (tmp_path / "baseline" / "history.csv").open() as a,
+        (tmp_path / "controlled" / "history.csv").open() as b,
+    ):
+        first = next(csv.DictReader(a)), next(csv.DictReader(b))
+    assert first[0]["start"] == first[1]["start"]  # the same held-out snapshot
+    cd = {run: s["over_episodes"]["mean_Cd"]["mean"] for run, s in summaries.items()}
+    assert cd["controlled"] < cd["baseline"], cd
+    bound = shipped_policies(PACKAGE_POLICIES)["jet-cylinder-fast"]["env_kwargs"]
+    assert np.all(np.abs(_actions(tmp_path / "controlled")) <= bound["max_flow_rate"] * (1 + 1e-6))
