@@ -25,6 +25,9 @@ _NEEDS: dict[str, tuple[str, ...]] = {
     "jet-cylinder": ("pyprecice", "openfoam", "blockmesh", "decomposepar", "mpirun"),
     "rotating-cylinder": ("pyprecice", "openfoam", "blockmesh", "decomposepar", "mpirun"),
     "quickstart": ("pyprecice", "openfoam", "blockmesh"),
+    # the training cases run one solver rank: no decomposePar, no mpirun
+    "jet-cylinder-fast": ("pyprecice", "openfoam", "blockmesh"),
+    "rotating-cylinder-fast": ("pyprecice", "openfoam", "blockmesh"),
     "perpendicular-flap": ("pyprecice", "openfoam", "deal.ii", "elasticity"),
 }
 
