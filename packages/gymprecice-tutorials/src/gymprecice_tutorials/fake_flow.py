@@ -12,7 +12,9 @@ gymprecice_tutorials.fake_flow:CylinderWake``) that:
   angular velocity ``omega``) and drives a model of the wake with them;
 * writes ``postProcessing/probes/0/p`` (the 151 probes of the recipe) and
   ``postProcessing/forceCoeffs/0/coefficient.dat`` in OpenFOAM v1912's format, one row per
-  time window, so the environment's real readers run.
+  solver step (``flow.dt`` of the recipe; the partner subcycles in a window that is longer,
+  as with ``coupling="action"``, see :func:`double_case_files`), so the environment's real
+  readers run.
 
 The wake model is a Stuart-Landau oscillator ``z`` (complex amplitude of the vortex
 shedding), the normal form of the Hopf bifurcation that a cylinder wake goes through near
@@ -289,7 +291,16 @@ def double_case_files(
     The preCICE configuration and the controller's side are the recipe's own; the fluid is
     gymprecice's scripted partner with :class:`CylinderWake`, and preCICE is gymprecice's
     test double (``gymprecice.testing.fake_precice``). ``step_sleep`` slows each solver
-    step down (seconds), to exercise timeouts and parallel envs. ``library="precice"``
+    step down (seconds), to exercise timeouts and parallel envs. The partner steps with the
+    recipe's solver time step (``spec.flow.dt``) and writes one probe and force row per
+    step. With ``coupling="action"`` it subcycles in the action's window and writes every
+    row before the step's ``advance``, as OpenFOAM's function objects listed before the
+    preCICE adapter do: in that serial-explicit scheme the fluid's window-end ``advance``
+    waits for the controller's next action, so a row written after it would never reach the
+    controller that waits for it. With ``coupling="step"`` (one window per step,
+    parallel-explicit) it writes each row once its window's exchange is done, so the
+    controller never sees a row of the next step yet and runs are reproducible.
+    ``library="precice"``
     couples the same two participants through real preCICE instead (both sides must use
     the same library).
     """
@@ -301,6 +312,8 @@ def double_case_files(
         options={"case": FLOW_FILE, "outputs": ".", **dict(flow_options or {})},
         python="{python}",
         write_outputs=".",
+        write_every_step=spec.coupling == "action",
+        dt=repr(float(spec.flow.dt)),
         step_sleep=f"{float(step_sleep):g}" if step_sleep else None,
     )
     config: dict[str, Any] = recipes.gymprecice_config(spec)

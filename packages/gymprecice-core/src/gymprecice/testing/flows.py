@@ -175,7 +175,11 @@ class Flow:
         return {}
 
     def write_outputs(self, directory: Path, t: float) -> None:
-        """Append this window's rows to solver output files under ``directory``."""
+        """Append rows at time ``t`` to solver output files under ``directory``.
+
+        The partner calls it once per completed window, or once per solver step with
+        ``--write-every-step``.
+        """
 
 
 class NullFlow(Flow):

@@ -12,7 +12,7 @@ Usage::
         [--flow gymprecice.testing.flows:CylinderFlow] [--option KEY=VALUE ...] \\
         [--library gymprecice.testing.fake_precice|precice] [--dt SECONDS] \\
         [--crash-at-window N] [--hang-at-window N] [--exit-code CODE] \\
-        [--step-sleep SECONDS] [--write-outputs DIR]
+        [--step-sleep SECONDS] [--write-outputs DIR [--write-every-step]]
 
 One line per completed time window goes to stdout (``[Fluid] window 3 t=0.03 Cd=...``),
 so the log grows exactly as the run progresses. Fault injection, at window ``N`` (``0`` is
@@ -23,6 +23,16 @@ before ``initialize()``, ``N >= 1`` right after the ``N``-th window completed):
 * ``--hang-at-window N``: print a line, then sleep forever (a deadlocked solver).
 * ``--exit-code C`` alone: finish the run normally, then report an error and exit with ``C``.
 * ``--step-sleep S``: sleep ``S`` seconds per time step (emulates a CFD step's cost).
+
+Outputs (``--write-outputs DIR``): by default the flow appends one row per completed time
+window, after the window's ``advance``. ``--write-every-step`` writes one row per solver
+step (at the step's end time, ``t + dt``) *before* ``advance``, as OpenFOAM's function
+objects (probes, forceCoeffs) listed before the preCICE adapter do. A solver that subcycles
+(``--dt``) in a window then writes every substep, and a second participant of a serial
+scheme, whose window-end ``advance`` blocks until the first participant's next window, has
+written its rows before it waits (with the default, the first participant would wait for
+rows that come only after its own next ``advance``: a deadlock). With implicit coupling
+every iteration's rows are written, as OpenFOAM does.
 """
 
 from __future__ import annotations
@@ -60,7 +70,8 @@ def command(
     """The argv that runs a partner, for ``subprocess`` or a solver of kind ``command``.
 
     ``flags`` are the remaining command-line options in Python spelling, e.g.
-    ``crash_at_window=3, exit_code=1, step_sleep=0.01, write_outputs="."``.
+    ``crash_at_window=3, exit_code=1, step_sleep=0.01, write_outputs=".", dt=0.001,
+    write_every_step=True``.
     """
     argv = [python or sys.executable, "-m", "gymprecice.testing.partner"]
     argv += ["--config", str(config), "--participant", participant]
@@ -111,6 +122,11 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--exit-code", type=int, default=None, metavar="CODE")
     parser.add_argument("--step-sleep", type=float, default=0.0, metavar="SECONDS")
     parser.add_argument("--write-outputs", default=None, metavar="DIR")
+    parser.add_argument(
+        "--write-every-step",
+        action="store_true",
+        help="write output rows after every solver step, before advance (OpenFOAM-like)",
+    )
     return parser.parse_args(argv)
 
 
@@ -181,6 +197,7 @@ def run(args: argparse.Namespace) -> int:
         ids[mesh] = mesh_ids
         flow.register_mesh(mesh, coords)
     out_dir = Path(args.write_outputs) if args.write_outputs else None
+    every_step = out_dir is not None and args.write_every_step
     t, window, iterations = 0.0, 0, 0
     saved: tuple[Any, float] | None = None
     print(f"[{name}] initialized, flow {type(flow).__name__}", flush=True)
@@ -201,6 +218,9 @@ def run(args: argparse.Namespace) -> int:
                 participant.write_data(mesh, data, ids[mesh], flow.output(data, mesh))
         if args.step_sleep:
             time.sleep(args.step_sleep)
+        if every_step:
+            assert out_dir is not None
+            flow.write_outputs(out_dir, t + dt)
         participant.advance(dt)
         iterations += 1
         if participant.requires_reading_checkpoint():
@@ -213,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
             window += 1
             fields = " ".join(f"{k}={v:.6g}" for k, v in flow.summary().items())
             print(f"[{name}] window {window} t={t:.10g} steps={iterations} {fields}", flush=True)
-            if out_dir is not None:
+            if out_dir is not None and not every_step:
                 flow.write_outputs(out_dir, t)
             faults.check(window)
     participant.finalize()
