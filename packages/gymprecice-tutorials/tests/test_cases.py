@@ -172,11 +172,17 @@ def test_precice_wiring(name: str) -> None:
     [m2n] = cfg.m2n
     assert (m2n.kind, m2n.acceptor, m2n.connector) == ("sockets", "Controller", "Fluid")
     [scheme] = cfg.coupling_schemes
-    assert scheme.kind == "parallel-explicit"
+    # one window per solver step (parallel), or per action (serial, the controller first)
+    kind = "serial-explicit" if spec.coupling == "action" else "parallel-explicit"
+    assert scheme.kind == kind
     assert (scheme.first, scheme.second) == ("Controller", "Fluid")
-    assert scheme.time_window_size == pytest.approx(spec.flow.dt)
+    assert scheme.time_window_size == pytest.approx(spec.time_window)
     assert scheme.max_time == pytest.approx(spec.episode_time)
-    if name != "quickstart":
+    if name.endswith("_fast"):
+        assert scheme.time_window_size == pytest.approx(0.025)  # 25 steps x 1e-3 s
+        assert scheme.max_time == pytest.approx(1.0)  # 40 actions
+    elif name != "quickstart":
+        assert scheme.time_window_size == pytest.approx(5e-4)
         assert scheme.max_time == pytest.approx(2.0)  # 80 actions x 50 steps x 5e-4 s
 
     fluid, controller = cfg.participant("Fluid"), cfg.participant("Controller")
