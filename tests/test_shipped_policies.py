@@ -32,6 +32,7 @@ from gymprecice_tutorials.shipped_policies import (
     POLICIES_DIR_ENV,
     PolicyError,
     load_shipped,
+    read_metadata,
     resolve_policy,
     ship_policy,
     shipped_policies,
@@ -154,6 +155,8 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
             "1",
             "--timesteps",
             "16",
+            "--checkpoint-every",
+            "8",
             "--episode-time",
             "0.1",
             "--env-kwargs",
@@ -217,6 +220,31 @@ def test_shipping_keeps_what_evaluation_needs_and_the_record(tiny):
     assert (policies / "tiny" / "model.zip").stat().st_size < (
         root / "train" / "model.zip"
     ).stat().st_size
+
+
+def test_a_checkpoint_ships_best_by_training_return_or_by_steps(tiny, tmp_path):
+    """--checkpoint best takes checkpoints/best.json's model (chosen by training return,
+    never by an evaluation), --checkpoint STEPS that step's; others are refused."""
+    train = tiny["root"] / "train"
+    checkpoints = sorted((train / "checkpoints").glob("*_steps.zip"))
+    assert checkpoints, "the tiny run keeps checkpoints"
+    first = checkpoints[0]
+    steps = int(first.stem.split("_")[-2])
+    # point best.json at the first checkpoint: best is whatever it names, not the newest
+    best = json.loads((train / "checkpoints" / "best.json").read_text())
+    (train / "checkpoints" / "best.json").write_text(json.dumps({**best, "name": first.name}))
+    try:
+        dest = ship_policy(train, "best", directory=tmp_path, checkpoint="best")
+        meta = read_metadata(dest)
+        assert meta["training"]["model"] == f"checkpoints/{first.name}"
+        assert meta["training"]["model_sha256"] == file_sha256(first)
+        dest = ship_policy(train, "by-steps", directory=tmp_path, checkpoint=str(steps))
+        assert read_metadata(dest)["training"]["model"] == f"checkpoints/{first.name}"
+        for bad in ("latest", "999999"):
+            with pytest.raises(PolicyError, match="checkpoint"):
+                ship_policy(train, "bad", directory=tmp_path, checkpoint=bad)
+    finally:
+        (train / "checkpoints" / "best.json").write_text(json.dumps(best))
 
 
 def test_evaluate_by_name_and_as_shipped_acts_like_the_training_run(tiny):

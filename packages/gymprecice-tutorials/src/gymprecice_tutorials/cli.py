@@ -359,6 +359,13 @@ def _policy_parsers(sub: Any) -> None:
         metavar="DIR",
         help="ship into DIR (None: $GYMPRECICE_POLICIES_DIR, else the package's policies/)",
     )
+    p.add_argument(
+        "--checkpoint",
+        default=None,
+        metavar="best|STEPS",
+        help="ship a checkpoint instead of the final model: 'best' (highest mean training "
+        "return, checkpoints/best.json) or a step count",
+    )
     p.add_argument("--force", action="store_true", help="replace a policy of that name")
     p.set_defaults(func=_policies("ship"))
 

@@ -433,14 +433,17 @@ def ship_policy(
     evaluation: str | os.PathLike[str] | None = None,
     directory: str | os.PathLike[str] | None = None,
     force: bool = False,
+    checkpoint: str | None = None,
 ) -> Path:
     """Copy a training run's final model into the shipped policies as ``name`` (default:
     the training env's name); return the policy's directory.
 
     ``train_dir`` is a ``gymprecice train`` output (its ``model.zip``, else its newest
-    checkpoint); ``evaluation`` a ``gymprecice evaluate`` output of that model, whose
-    result ``policy.json`` then records. An existing policy of that name is replaced only
-    with ``force``.
+    checkpoint); ``checkpoint`` picks one of its checkpoints instead: ``"best"`` (the one
+    with the highest mean training return, ``checkpoints/best.json``: chosen by training,
+    never by an evaluation) or a step count. ``evaluation`` a ``gymprecice evaluate``
+    output of that model, whose result ``policy.json`` then records. An existing policy of
+    that name is replaced only with ``force``.
     """
     from gymprecice_tutorials.envs import find_model, load_model, vecnormalize_path
     from gymprecice_tutorials.manifest import file_sha256, package_versions
@@ -472,10 +475,13 @@ def ship_policy(
         raise PolicyError(
             f"a policy {name!r} is shipped already ({dest}); add --force to replace it"
         )
-    try:
-        source, note = find_model(train_dir)
-    except FileNotFoundError as exc:
-        raise PolicyError(str(exc)) from None
+    if checkpoint is not None:
+        source, note = _checkpoint(train_dir, checkpoint), None
+    else:
+        try:
+            source, note = find_model(train_dir)
+        except FileNotFoundError as exc:
+            raise PolicyError(str(exc)) from None
     if note:
         print(f"gymprecice ship-policy: {note}")
     described = describe_env(env, settings.get("env_kwargs", {}))
@@ -618,7 +624,7 @@ def _training_record(
         "timesteps_requested": settings.get("timesteps"),
         "interrupted": result.get("interrupted"),
         "wall_clock_seconds": round(sum(seconds), 1) if seconds else None,
-        "started": manifest.get("created"),
+        "recorded": manifest.get("created"),
         "source": (manifest.get("source") or {}).get("git"),
         "packages": manifest.get("packages"),
         "solvers_ok": (manifest.get("solvers") or {}).get("ok"),
@@ -626,6 +632,29 @@ def _training_record(
         "model_sha256": model_sha,
         "manifest_model_sha256_matches": (recorded == model_sha) if recorded else None,
     }
+
+
+def _checkpoint(train_dir: Path, which: str) -> Path:
+    """``train_dir``'s checkpoint ``which``: ``best`` or a step count."""
+    directory = train_dir / "checkpoints"
+    if which == "best":
+        try:
+            name = json.loads((directory / "best.json").read_text())["name"]
+        except (OSError, ValueError, KeyError) as exc:
+            raise PolicyError(
+                f"{directory}: no readable best.json ({exc}); train with checkpoints, or "
+                "give --checkpoint STEPS"
+            ) from None
+        path = directory / str(name)
+    elif which.isdigit():
+        found = sorted(directory.glob(f"*_{int(which)}_steps.zip"))
+        path = found[0] if found else directory / f"ppo_{int(which)}_steps.zip"
+    else:
+        raise PolicyError(f"--checkpoint {which!r}: give 'best' or a step count")
+    if not path.is_file():
+        kept = sorted(p.name for p in directory.glob("*_steps.zip"))
+        raise PolicyError(f"no checkpoint {path.name} in {directory}; kept: {', '.join(kept)}")
+    return path
 
 
 def _evaluation_record(run: Path, model_sha: str) -> dict[str, Any]:
@@ -673,6 +702,7 @@ def ship_command(args: argparse.Namespace) -> int:
             evaluation=args.evaluation,
             directory=args.into,
             force=args.force,
+            checkpoint=args.checkpoint,
         )
     except PolicyError as exc:
         print(f"gymprecice ship-policy: {exc}", file=sys.stderr)
