@@ -550,3 +550,21 @@ def test_applied_action_ramps_from_the_previous_action():
     assert np.allclose(v, [0.0, 0.5, 1.0, 0.0, -1.0])
     t, v = plots.applied_action(np.array([0.0]), np.array([1.0]), np.array([2.0]), "hold", 2)
     assert np.allclose(v, [2.0, 2.0, 2.0])
+
+
+def test_one_interpolated_window_per_action_is_drawn_as_a_ramp(tmp_path):
+    # coupling="action": core writes each action once (hold, 1 window); preCICE's
+    # waveform-degree 1 ramps it across the window, which is what the solver applies
+    case = tmp_path / "case"
+    case.mkdir()
+    (tmp_path / "manifest.json").write_text(json.dumps({"case_dir": str(case)}))
+    config = {"precice": {"config_file": "precice-config.xml"}, "actions": {"windows": 1}}
+    (case / "gymprecice-config.json").write_text(json.dumps(config))
+    xml = '<data:vector name="Velocity" waveform-degree="{}" />'
+    (case / "precice-config.xml").write_text(xml.format(1))
+    assert plots._action_scheme(tmp_path) == ("ramp", 1)
+    (case / "precice-config.xml").write_text(xml.format(0))
+    assert plots._action_scheme(tmp_path) == ("hold", 1)
+    config["actions"] = {"windows": 50, "scheme": "ramp"}
+    (case / "gymprecice-config.json").write_text(json.dumps(config))
+    assert plots._action_scheme(tmp_path) == ("ramp", 50)

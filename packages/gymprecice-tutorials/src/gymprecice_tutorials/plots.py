@@ -184,12 +184,21 @@ def _run_env(run: Path) -> Any:
 
 
 def _action_scheme(run: Path) -> tuple[str, int]:
-    """The case's action scheme and windows per action (``hold``, 1 when unknown)."""
+    """The case's action scheme and windows per action (``hold``, 1 when unknown).
+
+    One window per action that preCICE interpolates (``waveform-degree="1"`` in the
+    case's preCICE configuration) reaches the solver as a ramp, whatever core writes.
+    """
     try:
         manifest = json.loads((run / "manifest.json").read_text())
-        config = json.loads((Path(manifest["case_dir"]) / "gymprecice-config.json").read_text())
+        case = Path(manifest["case_dir"])
+        config = json.loads((case / "gymprecice-config.json").read_text())
         actions = config.get("actions", {})
-        return str(actions.get("scheme", "hold")), int(actions.get("windows", 1))
+        scheme, windows = str(actions.get("scheme", "hold")), int(actions.get("windows", 1))
+        precice = case / str(config.get("precice", {}).get("config_file", "precice-config.xml"))
+        if windows == 1 and 'waveform-degree="1"' in precice.read_text():
+            scheme = "ramp"
+        return scheme, windows
     except (OSError, ValueError, KeyError, TypeError):
         return "hold", 1
 
