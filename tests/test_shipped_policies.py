@@ -370,27 +370,9 @@ def test_unknown_names_other_actuators_and_wrong_shapes_are_refused(tiny, tmp_pa
 
 def _missing() -> list[str]:
     """What the real stack lacks here (empty when preCICE, OpenFOAM and the adapter are)."""
-    missing = []
-    try:
-        import precice
+    from tests.test_tutorials_real_solvers import _missing as missing
 
-        if not hasattr(precice, "Participant"):
-            missing.append("pyprecice v3")
-    except ImportError:
-        missing.append("pyprecice (the preCICE library and its Python bindings)")
-    if shutil.which("pimpleFoam") is None:
-        missing.append("OpenFOAM (pimpleFoam)")
-    else:
-        from gymprecice.errors import CaseError
-        from gymprecice_openfoam.installation import find_openfoam
-
-        try:
-            adapter = find_openfoam().find_library()
-        except CaseError:
-            adapter = None
-        if adapter is None:
-            missing.append("the OpenFOAM-preCICE adapter (libpreciceAdapterFunctionObject.so)")
-    return missing
+    return missing()
 
 
 @pytest.mark.precice
