@@ -369,6 +369,11 @@ sys.path.insert(0, sys.argv[4])
 from test_supervision import CylinderEnv
 
 phase, how, case, _ = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
+# The signals at their default action, as in a terminal: a run started under nohup (or in
+# the background of a script) inherits SIGHUP (or SIGINT) ignored, and core rightly leaves
+# an ignored signal alone.
+signal.signal(signal.SIGHUP, signal.SIG_DFL)
+signal.signal(signal.SIGINT, signal.default_int_handler)
 sig = {"SIGINT": signal.SIGINT, "SIGTERM": signal.SIGTERM, "SIGHUP": signal.SIGHUP,
        "SystemExit": signal.SIGTERM}[how]
 if how == "SystemExit":
