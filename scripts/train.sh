@@ -28,4 +28,4 @@ if [[ "${1:-}" == "--paper" ]]; then
         --timesteps 80000 "$@"
 fi
 exec .venv/bin/gymprecice train jet-cylinder-fast --require-solvers --n-envs 2 --normalize \
-    --timesteps 48000 "$@"
+    --episode-time 2 --hyperparams scripts/ppo-jet-cylinder-fast.yml --timesteps 48000 "$@"
