@@ -560,10 +560,14 @@ def test_one_interpolated_window_per_action_is_drawn_as_a_ramp(tmp_path):
     (tmp_path / "manifest.json").write_text(json.dumps({"case_dir": str(case)}))
     config = {"precice": {"config_file": "precice-config.xml"}, "actions": {"windows": 1}}
     (case / "gymprecice-config.json").write_text(json.dumps(config))
-    xml = '<data:vector name="Velocity" waveform-degree="{}" />'
-    (case / "precice-config.xml").write_text(xml.format(1))
+    packaged = Path(plots.__file__).parent / "cases" / "jet_cylinder_fast" / "precice-config.xml"
+    xml = packaged.read_text()
+    assert 'name="Velocity" waveform-degree="1"' in xml  # the Controller writes Velocity
+    (case / "precice-config.xml").write_text(xml)
     assert plots._action_scheme(tmp_path) == ("ramp", 1)
-    (case / "precice-config.xml").write_text(xml.format(0))
+    (case / "precice-config.xml").write_text(
+        xml.replace('waveform-degree="1"', 'waveform-degree="0"')
+    )
     assert plots._action_scheme(tmp_path) == ("hold", 1)
     config["actions"] = {"windows": 50, "scheme": "ramp"}
     (case / "gymprecice-config.json").write_text(json.dumps(config))

@@ -186,20 +186,29 @@ def _run_env(run: Path) -> Any:
 def _action_scheme(run: Path) -> tuple[str, int]:
     """The case's action scheme and windows per action (``hold``, 1 when unknown).
 
-    One window per action that preCICE interpolates (``waveform-degree="1"`` in the
-    case's preCICE configuration) reaches the solver as a ramp, whatever core writes.
+    One window per action whose written data preCICE interpolates (a ``waveform-degree``
+    of 1 or more on the controller's write data in the case's preCICE configuration)
+    reaches the solver as a ramp, whatever core writes.
     """
+    from gymprecice.errors import ConfigError
+    from gymprecice.precice_xml import load_precice_config
+
     try:
         manifest = json.loads((run / "manifest.json").read_text())
         case = Path(manifest["case_dir"])
         config = json.loads((case / "gymprecice-config.json").read_text())
         actions = config.get("actions", {})
         scheme, windows = str(actions.get("scheme", "hold")), int(actions.get("windows", 1))
-        precice = case / str(config.get("precice", {}).get("config_file", "precice-config.xml"))
-        if windows == 1 and 'waveform-degree="1"' in precice.read_text():
-            scheme = "ramp"
+        if windows == 1:
+            precice = load_precice_config(
+                case / str(config.get("precice", {}).get("config_file", "precice-config.xml"))
+            )
+            controller = str(config.get("controller", {}).get("participant", "Controller"))
+            written = precice.participant(controller).write_data
+            if any((precice.data[name].waveform_degree or 0) >= 1 for name, _ in written):
+                scheme = "ramp"
         return scheme, windows
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError, KeyError, TypeError, ConfigError):
         return "hold", 1
 
 
