@@ -199,20 +199,6 @@ class CaseSpec:
         return ("cylinder",)
 
 
-CASES: dict[str, CaseSpec] = {
-    "jet_cylinder": CaseSpec(name="jet_cylinder", control="jets"),
-    "rotating_cylinder": CaseSpec(name="rotating_cylinder", control="rotation"),
-    "quickstart": CaseSpec(
-        name="quickstart",
-        control="jets",
-        resolution=Resolution.coarse(),
-        flow=Flow(outer_correctors=1),
-        actions_per_episode=20,
-        prerun_end_time=5.0,
-        n_procs=1,
-    ),
-}
-
 #: The training case of the ``*-fast`` environments: the quick start's coarse mesh (3,580
 #: cells) with PISO on one rank at twice the time step, one preCICE time window per action
 #: (25 substeps of 1e-3 s), 1 s episodes, and eight start snapshots spread over one
@@ -228,10 +214,24 @@ FAST_TRAINING = {
     "snapshots": (4.7, 4.74, 4.78, 4.82, 4.86, 4.9, 4.94, 4.98),
     "n_procs": 1,
 }
-CASES["jet_cylinder_fast"] = CaseSpec(name="jet_cylinder_fast", control="jets", **FAST_TRAINING)
-CASES["rotating_cylinder_fast"] = CaseSpec(
-    name="rotating_cylinder_fast", control="rotation", **FAST_TRAINING
-)
+
+CASES: dict[str, CaseSpec] = {
+    "jet_cylinder": CaseSpec(name="jet_cylinder", control="jets"),
+    "rotating_cylinder": CaseSpec(name="rotating_cylinder", control="rotation"),
+    "quickstart": CaseSpec(
+        name="quickstart",
+        control="jets",
+        resolution=Resolution.coarse(),
+        flow=Flow(outer_correctors=1),
+        actions_per_episode=20,
+        prerun_end_time=5.0,
+        n_procs=1,
+    ),
+    "jet_cylinder_fast": CaseSpec(name="jet_cylinder_fast", control="jets", **FAST_TRAINING),
+    "rotating_cylinder_fast": CaseSpec(
+        name="rotating_cylinder_fast", control="rotation", **FAST_TRAINING
+    ),
+}
 
 
 def case_spec(name: str, **overrides: object) -> CaseSpec:
