@@ -4,10 +4,11 @@
 #   bash scripts/train.sh [extra `gymprecice train` options]     # the training case, ~2 h on 2 cores
 #   bash scripts/train.sh --paper [extra options]                 # the paper's full-fidelity run
 #
-# Default: JetCylinderFast-v0 (the jet cylinder's training case: coarse mesh, 1 s episodes
-# from a library of start snapshots, Rabault's reward and jet bound), two environments of
-# one solver rank each, observation and reward normalisation, 48,000 actions (1,200
-# episodes). Results, commands and costs: docs/training.md. Then:
+# Default: JetCylinderFast-v0 (the jet cylinder's training case: coarse mesh, episodes from
+# a library of start snapshots, Rabault's reward and jet bound) with 2 s episodes, two
+# environments of one solver rank each, observation and reward normalisation, the PPO
+# settings of scripts/ppo-fast.yml, 48,000 actions (600 episodes). Results,
+# commands and costs: docs/training.md. Then:
 #
 #   .venv/bin/gymprecice evaluate jet-cylinder-fast        # 10 s from a held-out start
 #   .venv/bin/gymprecice baseline jet-cylinder-fast
@@ -28,4 +29,4 @@ if [[ "${1:-}" == "--paper" ]]; then
         --timesteps 80000 "$@"
 fi
 exec .venv/bin/gymprecice train jet-cylinder-fast --require-solvers --n-envs 2 --normalize \
-    --episode-time 2 --hyperparams scripts/ppo-jet-cylinder-fast.yml --timesteps 48000 "$@"
+    --episode-time 2 --hyperparams scripts/ppo-fast.yml --timesteps 48000 "$@"
