@@ -569,6 +569,14 @@ def test_one_interpolated_window_per_action_is_drawn_as_a_ramp(tmp_path):
         xml.replace('waveform-degree="1"', 'waveform-degree="0"')
     )
     assert plots._action_scheme(tmp_path) == ("hold", 1)
+    # a run directory moved elsewhere still finds its own copy of the case
+    moved = tmp_path / "moved"
+    (moved / "envs" / "cases").mkdir(parents=True)
+    shutil.copytree(case, moved / "envs" / "cases" / "case")  # waveform-degree 0 now
+    (moved / "manifest.json").write_text(json.dumps({"case_dir": str(tmp_path / "gone" / "case")}))
+    assert plots._action_scheme(moved) == ("hold", 1)
+    (moved / "envs" / "cases" / "case" / "precice-config.xml").write_text(xml)
+    assert plots._action_scheme(moved) == ("ramp", 1)
     config["actions"] = {"windows": 50, "scheme": "ramp"}
     (case / "gymprecice-config.json").write_text(json.dumps(config))
     assert plots._action_scheme(tmp_path) == ("ramp", 50)

@@ -196,6 +196,8 @@ def _action_scheme(run: Path) -> tuple[str, int]:
     try:
         manifest = json.loads((run / "manifest.json").read_text())
         case = Path(manifest["case_dir"])
+        if not case.is_dir():  # the run directory was moved: its own copy of the case
+            case = run / "envs" / "cases" / case.name
         config = json.loads((case / "gymprecice-config.json").read_text())
         actions = config.get("actions", {})
         scheme, windows = str(actions.get("scheme", "hold")), int(actions.get("windows", 1))
