@@ -37,10 +37,12 @@ own checksums (checked when a shipped policy loads) and, with ``--evaluation RUN
 evaluation's result.
 
 Shipping strips what evaluation does not need: the optimizer's moments (two thirds of a
-PPO ``model.zip``: 8.2 MB for the 512x512 MLP on 151 probes, 2.5 MB shipped), the last
-observations and episode statistics of training, and the TensorBoard path; the archive is
-deflated. ``PPO.load`` reads the result as any SB3 model (an optimizer with fresh state:
-continue training from the training run's own checkpoint, not from a shipped policy).
+PPO ``model.zip``), the value function's weights (zeroed, so that SB3 still loads the file
+and the zeros deflate away), the last observations and episode statistics of training, and
+the TensorBoard path; the archive is deflated. For the 512x512 MLP on 151 probes that is
+8.2 MB trained, 1.3 MB shipped. The shipped model is checked to act exactly like the trained
+one. ``PPO.load`` reads it as any SB3 model, but with a blank critic and fresh optimizer:
+continue training from the training run's own checkpoint, not from a shipped policy.
 
 ``GYMPRECICE_POLICIES_DIR`` (or a ``directory`` argument) points all of this at another
 directory than the package's: tests ship into a temporary one.
@@ -542,11 +544,24 @@ def ship_policy(
     return dest
 
 
+#: Parameter names of the value function in SB3 policies: PPO's value branch and head,
+#: SAC's and TD3's critics. Evaluation never reads them.
+_CRITIC_PREFIXES = ("mlp_extractor.value_net.", "value_net.", "critic.", "critic_target.")
+
+
 def _write_slim_model(model: Any, path: Path) -> None:
     """The model without what only training needs, in a deflated zip."""
+    import torch
+
     optimizer = getattr(model.policy, "optimizer", None)
     if optimizer is not None:
         optimizer.state.clear()  # Adam's moments: twice the network; fresh state loads fine
+    with torch.no_grad():
+        # the value function (critics) only steers training: zeros keep the file loadable
+        # by SB3 and deflate to nothing; the actions are checked unchanged afterwards
+        for name, param in model.policy.named_parameters():
+            if name.startswith(_CRITIC_PREFIXES):
+                param.zero_()
     model.tensorboard_log = None
     stored = path.with_suffix(".stored.zip")
     model.save(stored, exclude=list(_TRAINING_ONLY))
