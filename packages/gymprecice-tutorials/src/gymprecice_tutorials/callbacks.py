@@ -30,6 +30,7 @@ __all__ = [
     "Interrupted",
     "RotatingCheckpoints",
     "prune_checkpoints",
+    "read_best",
     "stop_signals_interrupt",
 ]
 
@@ -75,7 +76,7 @@ def prune_checkpoints(directory: Path, prefix: str, keep: int) -> list[Path]:
 
     Each checkpoint's ``VecNormalize`` statistics and replay buffer go with it.
     """
-    best = _read_best(directory).get("name")
+    best = read_best(directory).get("name")
     found = []
     for path in directory.glob(f"{prefix}_*_steps.zip"):
         steps = path.name[len(prefix) + 1 : -len("_steps.zip")]
@@ -96,7 +97,9 @@ def prune_checkpoints(directory: Path, prefix: str, keep: int) -> list[Path]:
     return deleted
 
 
-def _read_best(directory: Path) -> dict[str, Any]:
+def read_best(directory: Path) -> dict[str, Any]:
+    """The best checkpoint's record in ``directory`` (``name``, ``timesteps``, ``mean_return``);
+    empty when there is none or it cannot be read."""
     try:
         return json.loads((directory / BEST_NAME).read_text())
     except (OSError, ValueError):
@@ -108,7 +111,7 @@ def record_checkpoint(directory: Path, path: Path, model: Any) -> None:
     score = _mean_return(model)
     if score is None or not math.isfinite(score):
         return
-    best = _read_best(directory)
+    best = read_best(directory)
     if best.get("mean_return") is None or score > float(best["mean_return"]):
         record = {"name": path.name, "timesteps": int(model.num_timesteps), "mean_return": score}
         (directory / BEST_NAME).write_text(json.dumps(record, indent=2) + "\n")

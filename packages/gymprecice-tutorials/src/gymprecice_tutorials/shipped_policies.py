@@ -651,15 +651,16 @@ def _training_record(
 
 def _checkpoint(train_dir: Path, which: str) -> Path:
     """``train_dir``'s checkpoint ``which``: ``best`` or a step count."""
+    from gymprecice_tutorials.callbacks import BEST_NAME, read_best
+
     directory = train_dir / "checkpoints"
     if which == "best":
-        try:
-            name = json.loads((directory / "best.json").read_text())["name"]
-        except (OSError, ValueError, KeyError) as exc:
+        name = read_best(directory).get("name")
+        if not name:
             raise PolicyError(
-                f"{directory}: no readable best.json ({exc}); train with checkpoints, or "
+                f"{directory}: no readable {BEST_NAME}; train with checkpoints, or "
                 "give --checkpoint STEPS"
-            ) from None
+            )
         path = directory / str(name)
     elif which.isdigit():
         found = sorted(directory.glob(f"*_{int(which)}_steps.zip"))
