@@ -13,7 +13,7 @@
 #   .venv/bin/gymprecice evaluate jet-cylinder-fast        # 10 s from a held-out start
 #   .venv/bin/gymprecice baseline jet-cylinder-fast
 #
-# --paper: JetCylinder-v0 as in Gym-preCICE (17,416-cell PIMPLE mesh, 2 ranks per
+# --paper: JetCylinder-v0 as in Gym-preCICE (9,795-cell PIMPLE mesh, 2 ranks per
 # environment, 2 s episodes, 1,000 episodes on 24 environments = 48 cores); about 38 hours
 # with one environment on 2 cores (2 min 16 s per episode, docs/training.md).
 #

@@ -1,7 +1,7 @@
 """JetCylinderFast-v0 and RotatingCylinderFast-v0: the cylinders set up to learn in hours.
 
 The paper's jet cylinder (Rabault et al. 2019; Gym-preCICE) needs about a thousand 2 s
-episodes on its 17,416-cell PIMPLE mesh: two days on two cores. These environments train
+episodes on its 9,795-cell PIMPLE mesh: two days on two cores. These environments train
 the same controllers on the recipe ``*_fast`` (:data:`gymprecice_tutorials.recipes.FAST_TRAINING`):
 
 * **the training case**: the coarse mesh (3,580 cells), PISO on one rank, Δt = 1e-3 s,
