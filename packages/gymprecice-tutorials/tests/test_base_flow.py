@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import argparse
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -107,3 +109,20 @@ def test_base_flow_of_the_training_case_with_real_openfoam(tmp_path: Path) -> No
     assert 2.95 < cd < 2.99
     assert "% below the uncontrolled mean Cd" in done.stdout
     assert (tmp_path / "base-flow.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_resolution_options_give_only_the_knobs_typed() -> None:
+    parser = argparse.ArgumentParser()
+    recipes.add_resolution_options(parser)
+    assert recipes.resolution_overrides(parser.parse_args([])) == {}
+    typed = parser.parse_args(["--cells-per-jet", "4", "--wall-cell", "0.0075"])
+    assert recipes.resolution_overrides(typed) == {"cells_per_jet": 4, "wall_cell": 0.0075}
+
+
+def test_recipes_write_applies_the_resolution_options(tmp_path: Path) -> None:
+    assert recipes.main(["write", "jet_cylinder", str(tmp_path), "--cells-per-jet", "4"]) == 0
+    mesh = (tmp_path / recipes.FLUID_DIR / "system" / "blockMeshDict").read_text()
+    spec = recipes.case_spec("jet_cylinder")
+    finer = replace(spec.resolution, cells_per_jet=4)
+    assert mesh == recipes.blockmesh_dict(spec.geometry, finer)
+    assert mesh != recipes.blockmesh_dict(spec.geometry, spec.resolution)

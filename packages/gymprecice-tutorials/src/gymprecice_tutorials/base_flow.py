@@ -152,9 +152,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--end-time", type=float, default=4.0, help="simulated seconds")
     parser.add_argument("--out", type=Path, help="run directory (default: a temporary one)")
     parser.add_argument("--np", type=int, default=1, dest="n_procs", help="MPI ranks")
-    parser.add_argument("--cells-per-jet", type=int, help="mesh: see recipes.Resolution")
-    parser.add_argument("--wall-cell", type=float, help="mesh: see recipes.Resolution")
-    parser.add_argument("--wake-grading", type=float, help="mesh: see recipes.Resolution")
+    recipes.add_resolution_options(parser)
     parser.add_argument(
         "--baseline-cd", type=float, help="the case's uncontrolled mean Cd: prints the gap"
     )
@@ -163,15 +161,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not have_openfoam():
         print("OpenFOAM (blockMesh, pimpleFoam) is not on PATH", file=sys.stderr)
         return 2
-    knobs = {
-        k: v
-        for k, v in (
-            ("cells_per_jet", args.cells_per_jet),
-            ("wall_cell", args.wall_cell),
-            ("wake_grading", args.wake_grading),
-        )
-        if v is not None
-    }
+    knobs = recipes.resolution_overrides(args)
     spec = symmetric_spec(args.case, end_time=args.end_time, n_procs=args.n_procs, **knobs)
     cells = recipes.block_counts(spec.geometry, spec.resolution).cells
     out = args.out or Path(tempfile.mkdtemp(prefix="gymprecice-base-flow-"))

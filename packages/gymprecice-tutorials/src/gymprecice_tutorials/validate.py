@@ -381,9 +381,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="run directory (default: a temporary one)")
     parser.add_argument("--np", type=int, default=1, dest="n_procs", help="MPI ranks")
     parser.add_argument("--end-time", type=float, help="simulated seconds")
-    parser.add_argument("--cells-per-jet", type=int)
-    parser.add_argument("--wall-cell", type=float)
-    parser.add_argument("--wake-grading", type=float)
+    recipes.add_resolution_options(parser)
     parser.add_argument("--figure", type=Path, help="write the Cd/Cl figure here")
     parser.add_argument("--reuse", action="store_true", help="analyse an existing --out run")
     parser.add_argument("--no-kick", action="store_true", help="start from rest, no kick")
@@ -392,15 +390,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not have_openfoam():
         print("OpenFOAM (blockMesh, pimpleFoam) is not on PATH", file=sys.stderr)
         return 2
-    knobs = {
-        k: v
-        for k, v in (
-            ("cells_per_jet", args.cells_per_jet),
-            ("wall_cell", args.wall_cell),
-            ("wake_grading", args.wake_grading),
-        )
-        if v is not None
-    }
+    knobs = recipes.resolution_overrides(args)
     spec = validation_spec(smoke=args.smoke, n_procs=args.n_procs, end_time=args.end_time, **knobs)
     counts = recipes.block_counts(spec.geometry, spec.resolution)
     out = args.out or Path(tempfile.mkdtemp(prefix="gymprecice-validate-"))
