@@ -401,6 +401,32 @@ def test_evaluate_reports_mean_and_spread_and_change_against_the_baseline(record
     assert "against the baseline" in out
 
 
+def test_evaluate_states_drag_and_lift_over_every_solver_step(recorded):
+    """The claim's own statistics: mean Cd and mean |Cl| of coefficients.csv, per episode."""
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    summary = json.loads((root / "evaluate" / "summary.json").read_text())
+    with (root / "evaluate" / "coefficients.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    for episode in summary["episodes"]:
+        mine = [r for r in rows if int(r["episode"]) == episode["episode"]]
+        assert mine
+        cd = np.array([float(r["Cd"]) for r in mine])
+        cl = np.array([float(r["Cl"]) for r in mine])
+        assert episode["series_mean_Cd"] == pytest.approx(cd.mean())
+        assert episode["series_mean_abs_Cl"] == pytest.approx(np.abs(cl).mean())
+    base = json.loads((root / "baseline" / "summary.json").read_text())
+    ref = base["over_episodes"]["series_mean_abs_Cl"]["mean"]
+    ours = summary["over_episodes"]["series_mean_abs_Cl"]["mean"]
+    assert summary["change_percent"]["series_mean_abs_Cl"] == pytest.approx(
+        100 * (ours - ref) / abs(ref)
+    )
+    out = recorded["rollouts"]["evaluate"]  # type: ignore[index]
+    line = next(x for x in out.splitlines() if x.startswith("gymprecice evaluate:"))
+    assert "mean |Cl|" in line and "over every solver step" in line
+    # no relative change of the return: it is about zero uncontrolled by construction
+    assert line.split(", mean Cd")[0].count("against the baseline") == 0
+
+
 def test_evaluate_a_training_dir_without_model_uses_its_newest_checkpoint(recorded, tmp_path):
     shutil.copytree(recorded["root"] / "train" / "checkpoints", tmp_path / "killed" / "checkpoints")  # type: ignore[operator]
     out = _ok(

@@ -11,8 +11,12 @@ same files, so ``gymprecice plot`` can put any of them side by side:
 * ``coefficients.csv``: every solver step's ``episode, time, Cd, Cl`` (the time series of
   the cylinder envs; header only for envs without force coefficients);
 * ``summary.json``: per-episode return and the mean of each metric (``mean_Cd``, ...),
-  and over the episodes the mean and standard deviation of each (``over_episodes``) and,
-  with ``--baseline RUN``, the % change of each mean against that run's;
+  for the cylinders also the mean Cd and mean |Cl| over every solver step
+  (``series_mean_Cd``, ``series_mean_abs_Cl``: what a drag-reduction claim is stated in;
+  the per-action means differ where the reward averages over a window longer than an
+  action), and over the episodes the mean and standard deviation of each
+  (``over_episodes``) and, with ``--baseline RUN``, the % change of each mean against
+  that run's;
 * ``manifest.json``.
 
 The controllers: ``evaluate`` is a trained PPO policy, deterministic by default (the mean
@@ -143,6 +147,7 @@ def rollout(
         summary_row.update(
             {f"mean_{name}": _nanmean([r.get(name, math.nan) for r in rows]) for name in metrics}
         )
+        summary_row.update(series_means([r[2:] for r in coefficient_rows if r[0] == episode]))
         summaries.append(summary_row)
     _write_csv(out / "history.csv", history_rows)
     with (out / "coefficients.csv").open("w", newline="") as handle:
@@ -156,6 +161,14 @@ def rollout(
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+def series_means(coefficients: list[tuple[float, float]]) -> dict[str, float]:
+    """Mean Cd and mean |Cl| over an episode's solver steps (none without coefficients)."""
+    if not coefficients:
+        return {}
+    cd, cl = np.asarray(coefficients, dtype=float).T
+    return {"series_mean_Cd": float(cd.mean()), "series_mean_abs_Cl": float(np.abs(cl).mean())}
 
 
 def over_episodes(episodes: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:
@@ -236,20 +249,40 @@ def _read_baseline(path: Path) -> dict[str, Any]:
         ) from None
 
 
+#: What the one-line report shows: (summary key, label, % change against a baseline?).
+#: The cylinders' drag and lift over every solver step where recorded, else the per-action
+#: metrics. No % for the return or the signed lift: both are about zero uncontrolled (the
+#: reward offset is the uncontrolled drag), so a relative change of them says nothing.
+_REPORTED = {
+    "series": (
+        ("return", "return", False),
+        ("series_mean_Cd", "mean Cd", True),
+        ("series_mean_abs_Cl", "mean |Cl|", True),
+    ),
+    "actions": (
+        ("return", "return", False),
+        ("mean_Cd", "mean Cd", True),
+        ("mean_Cl", "mean Cl", False),
+    ),
+}
+
+
 def _report(command: str, summary: dict[str, Any], out: Path) -> str:
-    """One line: mean ± std over the episodes of return and Cd (and % change if known)."""
+    """One line: mean ± std over the episodes of return, Cd and |Cl| (and % change if known)."""
     stats = summary["over_episodes"]
+    source = "series" if "series_mean_Cd" in stats else "actions"
     parts = []
-    for key, label in (("return", "return"), ("mean_Cd", "mean Cd"), ("mean_Cl", "mean Cl")):
+    for key, label, relative in _REPORTED[source]:
         if key in stats:
             part = f"{label} {stats[key]['mean']:.4f} ± {stats[key]['std']:.4f}"
             change = summary.get("change_percent", {}).get(key)
-            if change is not None:
+            if relative and change is not None:
                 part += f" ({change:+.2f} % against the baseline)"
             parts.append(part)
+    over = "over every solver step, " if source == "series" else ""
     return (
         f"gymprecice {command}: {len(summary['episodes'])} episode(s), "
-        f"{', '.join(parts)} (mean ± std over episodes); results in {out}"
+        f"{', '.join(parts)} ({over}mean ± std over episodes); results in {out}"
     )
 
 
