@@ -87,20 +87,18 @@ def plateau(t: np.ndarray, cd: np.ndarray, cl: np.ndarray, *, window: float = WI
     step = float(t[1] - t[0]) if len(t) > 1 else 0.0
     edges = np.arange(t[0] + window, t[-1] - window + step + 1e-9, window)  # whole windows
     windows = [(a, a + window) for a in edges]
-    means, symmetric = [], []
+    means, lifts = [], []  # per window: mean Cd, largest |Cl| (inf: an empty window)
     for a, b in windows:
         inside = (t >= a) & (t < b)
         means.append(float(cd[inside].mean()) if inside.any() else float("nan"))
-        symmetric.append(bool(inside.any()) and float(np.abs(cl[inside]).max()) < SYMMETRY_CL)
+        lifts.append(float(np.abs(cl[inside]).max()) if inside.any() else float("inf"))
     for k in range(len(windows) - 1, 0, -1):
-        if symmetric[k] and symmetric[k - 1]:
-            a, b = windows[k]
-            inside = (t >= a) & (t < b)
+        if lifts[k] < SYMMETRY_CL and lifts[k - 1] < SYMMETRY_CL:
             return BaseFlow(
                 cd=means[k],
                 drift=means[k] - means[k - 1],
-                max_abs_cl=float(np.abs(cl[inside]).max()),
-                window=(a, b),
+                max_abs_cl=lifts[k],
+                window=windows[k],
             )
     raise ValueError(
         f"the flow never stayed symmetric (|Cl| < {SYMMETRY_CL}) for two {window:g} s windows "

@@ -113,6 +113,7 @@ def rollout(
     for episode in range(episodes):
         # a case with a library of start snapshots starts from its held-out ones
         obs, info = env.reset(seed=seed + episode, options={"split": "eval"})
+        first_row, first_coefficient = len(history_rows), len(coefficient_rows)
         t = float(info.get("time", 0.0))
         total, step = 0.0, 0
         while True:
@@ -136,7 +137,7 @@ def rollout(
                 coefficient_rows.append((episode, float(time_), float(cd), float(cl)))
             if terminated or truncated:
                 break
-        rows = [r for r in history_rows if r["episode"] == episode]
+        rows = history_rows[first_row:]
         metrics = dict.fromkeys(
             name
             for r in rows
@@ -147,7 +148,7 @@ def rollout(
         summary_row.update(
             {f"mean_{name}": _nanmean([r.get(name, math.nan) for r in rows]) for name in metrics}
         )
-        summary_row.update(series_means([r[2:] for r in coefficient_rows if r[0] == episode]))
+        summary_row.update(series_means([r[2:] for r in coefficient_rows[first_coefficient:]]))
         summaries.append(summary_row)
     _write_csv(out / "history.csv", history_rows)
     with (out / "coefficients.csv").open("w", newline="") as handle:
