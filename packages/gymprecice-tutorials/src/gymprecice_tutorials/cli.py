@@ -1,4 +1,4 @@
-"""``gymprecice train | evaluate | baseline | open-loop | plot | ship-policy | policies``.
+"""``gymprecice train | evaluate | baseline | open-loop | sweep | plot | ship-policy | policies``.
 
 Added to the ``gymprecice`` command line by the tutorials plugin. Every command that runs
 an environment writes into one output directory (``--out``, default
@@ -9,6 +9,7 @@ case file hashes, seeds, command line), so the directory alone says how it was m
     gymprecice evaluate jet-cylinder --time 10
     gymprecice baseline jet-cylinder --time 10
     gymprecice open-loop jet-cylinder --amplitude 0.5 --frequency 3
+    gymprecice sweep perpendicular-flap-fast            # uncontrolled, constants, sinusoids
     gymprecice plot runs/jet-cylinder/train runs/jet-cylinder/evaluate \\
         --baseline runs/jet-cylinder/baseline
     gymprecice ship-policy runs/jet-cylinder/train --name jet-cylinder \\
@@ -293,6 +294,33 @@ def _rollout_parsers(sub: Any) -> None:
     _baseline_option(p)
     p.set_defaults(func=_run("open-loop"))
 
+    p = _parser(
+        sub,
+        "sweep",
+        help="run the open-loop forcings a learned controller must beat",
+        description="Run the uncontrolled flow, N constant actions across the action box and "
+        "a grid of sinusoids (amplitude x frequency) on the held-out starts; write "
+        "sweep.csv, sweep.json (best constant, best sinusoid) and sweep.png.",
+    )
+    _env_options(p, rollout=True)
+    p.add_argument(
+        "--constants", type=_positive_int, default=9, help="constant actions, low to high"
+    )
+    p.add_argument(
+        "--amplitudes",
+        default="0.25,0.5,1",
+        help="sinusoid amplitudes, fractions of the half range, comma-separated",
+    )
+    p.add_argument(
+        "--frequencies",
+        default="0.3,0.6,1.2,2.4",
+        help="sinusoid frequencies (Hz), comma-separated",
+    )
+    p.add_argument(
+        "--episodes", type=_positive_int, default=3, help="held-out starts per controller"
+    )
+    p.set_defaults(func=_sweep)
+
 
 def _baseline_option(p: argparse.ArgumentParser) -> None:
     p.add_argument(
@@ -399,6 +427,12 @@ def _run(command: str) -> Any:
         return rollout_command(command, args)
 
     return handler
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from gymprecice_tutorials.sweep import sweep_command
+
+    return sweep_command(args)
 
 
 def _plot(args: argparse.Namespace) -> int:

@@ -34,6 +34,12 @@ class TutorialEnv:
     #: none to draw); the jets' flow rate and the cylinder's spin are symmetric boxes
     action_unit: str = "m³/s"
     action_bound: float | None = 2.5e-4
+    #: the per-action metric (``info["metrics"]``) that ``gymprecice sweep`` compares
+    #: controllers on, lower is better (``None``: the negated mean reward)
+    objective: str | None = None
+    #: keyword arguments that make the env's uncontrolled flow, where no action means it
+    #: (``gymprecice baseline`` and ``sweep`` add them)
+    baseline_kwargs: tuple[tuple[str, object], ...] = ()
 
 
 ENVIRONMENTS: dict[str, TutorialEnv] = {
@@ -87,6 +93,21 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             rollout_time=None,
             action_unit="m",
             action_bound=None,
+        ),
+        TutorialEnv(
+            "perpendicular-flap-fast",
+            "gymprecice/PerpendicularFlapFast-v0",
+            "gymprecice_tutorials.perpendicular_flap.fast:PerpendicularFlapFastEnv",
+            "the flap's training case: damp the swing after a gust (coarse FSI, 3 s "
+            "episodes from gust starts, three held out)",
+            double=False,
+            recipe=False,
+            open_loop_frequency=0.6,
+            rollout_time=None,
+            action_unit="m",
+            action_bound=None,
+            objective="mean_tip_displacement",
+            baseline_kwargs=(("uncontrolled", True),),
         ),
     )
 }

@@ -296,6 +296,8 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
         return 2
     out = (args.out or default_out(env_info, command)).resolve()
     kwargs = build_env_kwargs(args, env_info, out)
+    if command == "baseline":  # where the action cannot say "uncontrolled", a kwarg does
+        kwargs = {**dict(env_info.baseline_kwargs), **kwargs}
     baseline = _read_baseline(args.baseline) if getattr(args, "baseline", None) else None
     policy = _policy(args, env_info) if command == "evaluate" else None
     applied: dict[str, Any] = {}

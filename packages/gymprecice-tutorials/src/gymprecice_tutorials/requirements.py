@@ -29,6 +29,7 @@ _NEEDS: dict[str, tuple[str, ...]] = {
     "jet-cylinder-fast": ("pyprecice", "openfoam", "blockmesh"),
     "rotating-cylinder-fast": ("pyprecice", "openfoam", "blockmesh"),
     "perpendicular-flap": ("pyprecice", "openfoam", "deal.ii", "elasticity"),
+    "perpendicular-flap-fast": ("pyprecice", "openfoam", "deal.ii", "elasticity"),
 }
 
 

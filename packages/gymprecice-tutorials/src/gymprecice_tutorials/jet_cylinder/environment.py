@@ -20,11 +20,7 @@ function-object files through the OpenFOAM plugin's output readers.
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import shutil
-import tempfile
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -37,6 +33,7 @@ from gymprecice.core import Adapter, DataRef
 from gymprecice.solver import InterfaceGeometry, OutputReader
 from gymprecice_openfoam import actuators
 from gymprecice_tutorials import recipes
+from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.jet_cylinder.geometry import patch_geometry
 from gymprecice_tutorials.recipes import CaseSpec
 
@@ -66,46 +63,17 @@ def materialise_case(
 ) -> Path:
     """Write the case of ``spec`` once under ``<root>/cases/`` and return its directory.
 
-    The directory is named after a hash of every file of the case, so identical specs
-    share one directory and a changed spec never reuses a stale one. It is written to a
-    temporary directory and renamed into place, so many environments (one per process of a
-    vector env) can ask for the same case at once without a lock. ``double=True`` writes the
-    test-double variant (:func:`gymprecice_tutorials.fake_flow.double_case_files`).
+    See :func:`gymprecice_tutorials.case_files.write_case_files` for the naming and the
+    lock-free writing. ``double=True`` writes the test-double variant
+    (:func:`gymprecice_tutorials.fake_flow.double_case_files`).
     """
-    base = Path(root) if root is not None else Path("gymprecice-runs")
-    if not base.is_absolute():
-        base = Path.cwd() / base
-    cases = base / "cases"
     if double:
         from gymprecice_tutorials import fake_flow
 
         files = fake_flow.double_case_files(spec, **double_options)
     else:
         files = recipes.case_files(spec)
-    digest = hashlib.sha256()
-    for rel in sorted(files):
-        digest.update(rel.encode() + b"\0" + files[rel].encode() + b"\0")
-    target = cases / f"{spec.name}{'-double' if double else ''}-{digest.hexdigest()[:12]}"
-    if (target / "gymprecice-config.json").is_file():
-        return target
-    cases.mkdir(parents=True, exist_ok=True)
-    scratch = Path(tempfile.mkdtemp(prefix=f".{target.name}-", dir=cases))
-    try:
-        for rel, text in files.items():
-            path = scratch / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
-            if text.startswith("#!"):
-                path.chmod(0o755)
-        try:
-            os.rename(scratch, target)
-        except OSError:
-            if not (target / "gymprecice-config.json").is_file():  # not a lost race: real error
-                raise
-    finally:
-        if scratch.exists():
-            shutil.rmtree(scratch, ignore_errors=True)
-    return target
+    return write_case_files(f"{spec.name}{'-double' if double else ''}", files, root)
 
 
 class CylinderFlowEnv(Adapter):

@@ -1,0 +1,302 @@
+"""PerpendicularFlapFast-v0: damp the flap's swing, the flap's training case.
+
+Why this task needs feedback
+----------------------------
+The flap (0.1 x 1, E = 4 MPa, rho = 3000 kg/m³) bends with a period of about 1.6 s and
+the fluid (nu = 1 m²/s) barely damps it: after the inflow starts, the tip swings by
+±0.06 m for seconds, whatever the jet does. A constant jet moves only the centre of the
+swing (from dx = 0.07 m with the jet on the flap to 0.01 m with the jet at the top), and a
+sinusoid is in phase with the swing only by chance. Lowering the mean tip displacement
+below what the best constant jet gives means taking energy out of the swing: pushing
+while the tip moves upstream and easing off while it moves downstream, which needs the
+tip's state. The objective is :class:`PerpendicularFlapEnv`'s own, the mean magnitude of
+the tip displacement.
+
+What a start is
+---------------
+Fluid and solid run from rest at t = 0, coupled from the first window, so they never
+disagree. Each ``reset()`` then drives the coupled case for ``settle_time`` seconds (not
+part of the episode) with a *gust*: the jet held at one height and then moved to another
+at a random instant. The episode begins at ``settle_time`` with the flap swinging at an
+amplitude and phase that the gust set. Training draws its gusts from the episode seed;
+``reset(options={"split": "eval"})`` (what ``gymprecice evaluate``, ``baseline``,
+``open-loop`` and ``sweep`` ask for) takes the held-out gusts of :data:`EVAL_GUSTS`,
+``seed % 3``, which no training draw reproduces (training draws its heights on a grid of
+0.05 m offset from theirs by half a step, see :func:`gust`).
+
+The training case
+-----------------
+The packaged case with these edits (each measured, docs/training.md "The flap"):
+
+* fluid mesh 944 cells instead of 3,780 (half the cells in each direction);
+* preCICE time window 0.05 s instead of 0.01 s (fluid time step 0.025 s, the solid's
+  step is the window); two windows per action, so 10 actions per second as before;
+* solid elements of degree 2 instead of 4;
+* the coupling's max-time: ``settle_time + episode_time``.
+
+One 4 s run (1 s gust, 3 s episode) costs about 12 s of wall-clock on one core of the
+two, against about 80 s for the packaged case.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from gymprecice_tutorials.case_files import write_case_files
+from gymprecice_tutorials.perpendicular_flap import CASE_DIR
+from gymprecice_tutorials.perpendicular_flap.environment import (
+    INLET_HEIGHT,
+    PerpendicularFlapEnv,
+    jet_profile,
+)
+
+__all__ = [
+    "EVAL_GUSTS",
+    "FAST_EDITS",
+    "PerpendicularFlapFastEnv",
+    "Gust",
+    "fast_case_files",
+    "gust",
+]
+
+#: (file, old text, new text): the training case is the packaged case with these edits.
+#: Each old text must occur exactly once, so a change of the packaged case that would
+#: silently drop an edit fails instead.
+FAST_EDITS: tuple[tuple[str, str, str], ...] = (
+    ("fluid-openfoam/system/blockMeshDict", "nxSide      30;", "nxSide      15;"),
+    ("fluid-openfoam/system/blockMeshDict", "nxFlap      4;", "nxFlap      2;"),
+    ("fluid-openfoam/system/blockMeshDict", "nyFlap      15;", "nyFlap      8;"),
+    ("fluid-openfoam/system/blockMeshDict", "nyAbove     45;", "nyAbove     22;"),
+    ("fluid-openfoam/system/controlDict", "deltaT          0.01;", "deltaT          0.025;"),
+    ("solid-dealii/parameters.prm", "set Time step size  = 0.01", "set Time step size  = 0.05"),
+    ("solid-dealii/parameters.prm", "set Polynomial degree = 4", "set Polynomial degree = 2"),
+    ("gymprecice-config.json", '"windows": 10', '"windows": 2'),
+)
+#: the training case's preCICE time window (s)
+WINDOW = 0.05
+#: simulated seconds per action (two windows)
+ACTION_TIME = 0.1
+#: grid of gust heights (m): training draws ``GUST_STEP * (k + 0.5)``, evaluation uses
+#: multiples of ``GUST_STEP``, so the two never share a height
+GUST_STEP = 0.05
+
+
+class Gust(tuple):
+    """A start: the jet at ``first`` until ``switch`` seconds, then at ``second``."""
+
+    __slots__ = ()
+
+    def __new__(cls, first: float, second: float, switch: float) -> Gust:
+        return super().__new__(cls, (float(first), float(second), float(switch)))
+
+    first = property(lambda self: self[0])
+    second = property(lambda self: self[1])
+    switch = property(lambda self: self[2])
+
+    def centre(self, time: float) -> float:
+        """The jet centre the gust asks for at ``time`` (seconds since the run began)."""
+        return self.first if time < self.switch else self.second
+
+
+#: The held-out starts: the jet on the flap then at the top (a large swing), at the top
+#: then on the flap, and a small move in the middle (a small swing of another phase).
+EVAL_GUSTS: tuple[Gust, ...] = (
+    Gust(1.0, 3.0, 0.5),
+    Gust(3.0, 1.0, 0.3),
+    Gust(2.0, 1.5, 0.7),
+)
+
+
+def gust(rng: np.random.Generator, settle_time: float, low: float, high: float) -> Gust:
+    """A training start drawn from ``rng``: two heights and a switch within the settle.
+
+    Heights lie on the half-step grid ``low + GUST_STEP * (k + 0.5)``, which never meets
+    the whole-step heights of :data:`EVAL_GUSTS`; the switch is a whole action in
+    ``[ACTION_TIME, settle_time - ACTION_TIME]``.
+    """
+    slots = max(1, round((high - low) / GUST_STEP))
+    heights = low + GUST_STEP * (rng.integers(0, slots, size=2) + 0.5)
+    actions = max(1, round(settle_time / ACTION_TIME))
+    switch = ACTION_TIME * int(rng.integers(1, max(2, actions)))
+    return Gust(heights[0], heights[1], switch)
+
+
+def fast_case_files(end_time: float) -> dict[str, str]:
+    """The training case's files: the packaged case with :data:`FAST_EDITS` applied and
+    the run's end (preCICE max-time, the solvers' end times) at ``end_time``."""
+    files = {
+        str(path.relative_to(CASE_DIR)): path.read_text()
+        for path in sorted(CASE_DIR.rglob("*"))
+        if path.is_file()
+    }
+    edits = [
+        *FAST_EDITS,
+        (
+            "solid-dealii/parameters.prm",
+            "set End time        = 5",
+            f"set End time        = {_fmt(end_time + 1)}",
+        ),
+        (
+            "fluid-openfoam/system/controlDict",
+            "endTime         5;",
+            f"endTime         {_fmt(end_time + 1)};",
+        ),
+    ]
+    for rel, old, new in edits:
+        count = files[rel].count(old)
+        if count != 1:
+            raise ValueError(
+                f"{CASE_DIR / rel}: the training case edits {old!r}, which occurs {count} "
+                "times (expected once); update FAST_EDITS in gymprecice_tutorials."
+                "perpendicular_flap.fast to the packaged case"
+            )
+        files[rel] = files[rel].replace(old, new)
+    xml = "precice-config.xml"
+    files[xml], count = re.subn(
+        r'<max-time value="[^"]*" />', f'<max-time value="{_fmt(end_time)}" />', files[xml]
+    )
+    if count != 2:
+        raise ValueError(
+            f"{CASE_DIR / xml}: expected two coupling schemes' max-time, found {count}"
+        )
+    files[xml] = files[xml].replace(
+        'time-window-size value="0.01"', f'time-window-size value="{_fmt(WINDOW)}"'
+    )
+    return files
+
+
+def _fmt(value: float) -> str:
+    return f"{value:.10g}"
+
+
+class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
+    """Damp the flap's swing after a gust, on the flap's training case (module docstring).
+
+    * **Action** ``(1,)``: the jet centre, as :class:`PerpendicularFlapEnv`.
+    * **Observation** ``(6,)``: the tip's displacement ``(dx, dy)``, its velocity over the
+      last window ``(vx, vy)`` and the force on the tip ``(fx, fy)``, from the watch point.
+    * **Reward**: ``-mean |d|`` over the step's windows (metres), as the parent.
+    * **Episode**: ``episode_time`` seconds (default 3: 30 actions) after a
+      ``settle_time`` gust (default 1 s); truncated at the end, no terminal state.
+    * ``uncontrolled=True``: after the gust the inlet carries the reference inflow (the
+      parabola across the whole inlet, as the packaged case's uncontrolled flap) whatever
+      the action: the flap that a controller is judged against (``gymprecice baseline``).
+    """
+
+    def __init__(
+        self,
+        options: Mapping[str, Any] | str | Path | None = None,
+        idx: int = 0,
+        *,
+        episode_time: float = 3.0,
+        settle_time: float = 1.0,
+        uncontrolled: bool = False,
+        run_root: str | Path | None = None,
+        **kwargs: Any,
+    ) -> None:
+        for name, value in (("episode_time", episode_time), ("settle_time", settle_time)):
+            steps = value / ACTION_TIME
+            if not math.isfinite(value) or value <= 0 or abs(steps - round(steps)) > 1e-9:
+                raise ValueError(
+                    f"{name} must be a positive multiple of {ACTION_TIME} s (one action), "
+                    f"got {value}"
+                )
+        self.episode_time = float(episode_time)
+        self.settle_time = float(settle_time)
+        if options is None:
+            options = write_case_files(
+                "perpendicular-flap-fast",
+                fast_case_files(self.settle_time + self.episode_time),
+                run_root,
+            )
+        super().__init__(options, idx, run_root=run_root, **kwargs)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(6,), dtype=np.float32)
+        self.uncontrolled = bool(uncontrolled)
+        self.start: Gust | None = None
+        self._split, self._split_seed = "train", None
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start the coupled run, drive it through this episode's gust, return the state.
+
+        ``options={"split": "eval"}`` takes :data:`EVAL_GUSTS` ``[seed % 3]`` (``seed``
+        0 when none is given); any other split draws a training gust from the seed.
+        """
+        split = (options or {}).get("split", "train")
+        if split not in ("train", "eval"):
+            raise ValueError(f"split must be 'train' or 'eval', got {split!r}")
+        self._split, self._split_seed = split, seed
+        obs, info = super().reset(seed=seed, options=options)  # draws self.start
+        assert self.start is not None
+        while self.time < self.settle_time - 1e-9:
+            centre = self.start.centre(self.time)
+            obs, _, terminated, truncated, info = super().step(np.array([centre], np.float32))
+            if terminated or truncated:
+                raise RuntimeError(
+                    f"the coupled run ended at t = {self.time:g} s during the {self.settle_time} s "
+                    "gust; the case's max-time must exceed settle_time"
+                )
+        info = {**info, "start": {"gust": list(self.start), "split": split}}
+        return obs, info
+
+    def _get_action(self, action: Any, write_var_list: list) -> dict:
+        if not (self.uncontrolled and self.time >= self.settle_time - 1e-9):
+            return super()._get_action(action, write_var_list)
+        geometry = self.interface_geometry[self.INLET]
+        velocity_x = jet_profile(
+            geometry.coordinates[:, 1],
+            INLET_HEIGHT / 2.0,
+            INLET_HEIGHT,
+            mean_velocity=2.0 / 3.0 * self.inlet_max_velocity,
+            areas=geometry.areas,
+        )
+        velocity = np.column_stack([velocity_x, np.zeros_like(velocity_x)])
+        return {ref: velocity for ref in write_var_list}
+
+    def _get_observation(self, read_data: Any, read_var_list: list) -> np.ndarray:
+        state = super()._get_observation(read_data, read_var_list)
+        rows = self._tip.data
+        displacement = self._tip.field("Displacement", rows[-2:])
+        if len(displacement) == 2:
+            velocity = (displacement[1] - displacement[0]) / WINDOW
+        else:
+            velocity = np.zeros(2)
+        return np.concatenate([state[:2], velocity, state[2:]]).astype(np.float32)
+
+    def _initial_action(self) -> np.ndarray:
+        """Choose this episode's start; the run's first window is the gust's first height.
+
+        Core calls it during ``reset()`` once the seed is applied and the solvers run.
+        """
+        low, high = float(self.action_space.low[0]), float(self.action_space.high[0])
+        if self._split == "eval":
+            self.start = EVAL_GUSTS[(self._split_seed or 0) % len(EVAL_GUSTS)]
+        else:
+            self.start = gust(self.np_random, self.settle_time, low, high)
+        return np.array([self.start.first], dtype=np.float32)
+
+
+def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - a manual probe
+    """Run one uncontrolled episode (jet in the middle) from each held-out start."""
+    env = PerpendicularFlapFastEnv()
+    try:
+        for k in range(len(EVAL_GUSTS)):
+            env.reset(seed=k, options={"split": "eval"})
+            total, steps = 0.0, 0
+            while True:
+                _, reward, terminated, truncated, _ = env.step(np.array([2.0], np.float32))
+                total, steps = total + reward, steps + 1
+                if terminated or truncated:
+                    break
+            print(f"start {k}: mean |d| {-total / steps:.4f} m over {steps} actions")
+    finally:
+        env.close()
+    return 0
