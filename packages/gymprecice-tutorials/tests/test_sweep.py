@@ -1,0 +1,102 @@
+"""``gymprecice sweep`` on the test double: every controller on every held-out start, the
+table, the best of each kind and the figure; bad grids are refused before anything runs."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gymnasium.spaces import Box
+
+from gymprecice_tutorials.sweep import SweepResult, best, constant_controller, parse_grid
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _cli(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "gymprecice", "sweep", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+@pytest.mark.timeout(300)
+def test_sweep_runs_every_controller_on_every_start_and_names_the_best(tmp_path: Path) -> None:
+    proc = _cli(
+        tmp_path,
+        "quickstart",
+        "--double",
+        "--episode-time",
+        "0.1",
+        "--constants",
+        "3",
+        "--amplitudes",
+        "0.5,1",
+        "--frequencies",
+        "3",
+        "--episodes",
+        "2",
+        "--out",
+        "sweep",
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    out = tmp_path / "sweep"
+    with (out / "sweep.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [r["kind"] for r in rows] == ["uncontrolled"] + ["constant"] * 3 + ["sinusoid"] * 2
+    assert [float(r["action"]) for r in rows if r["kind"] == "constant"] == pytest.approx(
+        [-2.5e-4, 0.0, 2.5e-4]
+    )
+    for row in rows:
+        starts = [float(row["start_0"]), float(row["start_1"])]
+        assert float(row["mean"]) == pytest.approx(np.mean(starts))
+        assert float(row["spread"]) == pytest.approx(max(starts) - min(starts))
+        assert (out / row["label"] / "history.csv").is_file()
+    summary = json.loads((out / "sweep.json").read_text())
+    constants = [r for r in rows if r["kind"] == "constant"]
+    assert (
+        summary["best_constant"]["label"] == min(constants, key=lambda r: float(r["mean"]))["label"]
+    )
+    assert summary["best_sinusoid"]["kind"] == "sinusoid"
+    assert (out / "sweep.png").read_bytes().startswith(PNG_SIGNATURE)
+    assert "best constant" in proc.stdout and "best sinusoid" in proc.stdout
+
+
+@pytest.mark.parametrize(
+    ("flag", "value", "message"),
+    [
+        ("--amplitudes", "0.5,x", "--amplitudes takes comma-separated numbers"),
+        ("--frequencies", "0,1", "--frequencies must be positive"),
+        ("--amplitudes", ",", "--amplitudes needs at least one finite number"),
+    ],
+)
+def test_bad_grids_are_refused_naming_the_flag(tmp_path: Path, flag, value, message) -> None:
+    proc = _cli(tmp_path, "quickstart", "--double", flag, value, "--out", "sweep")
+    assert proc.returncode != 0 and message in proc.stderr, proc.stderr
+    assert not (tmp_path / "sweep").exists()
+
+
+def test_parse_grid_and_constant_controller() -> None:
+    assert parse_grid("0.25, 0.5,1", "amplitudes") == [0.25, 0.5, 1.0]
+    act = constant_controller(Box(1.0, 3.0, shape=(1,)), 0.25)
+    assert act(None, 0.0)[0] == pytest.approx(1.5)
+    with pytest.raises(TypeError, match="bounded Box"):
+        constant_controller(Box(-np.inf, np.inf, shape=(1,)), 0.5)
+
+
+def test_best_takes_the_lowest_mean_of_a_kind() -> None:
+    results = [
+        SweepResult("a", "constant", objectives=[0.3, 0.1]),
+        SweepResult("b", "constant", objectives=[0.15, 0.15]),
+        SweepResult("c", "sinusoid", objectives=[0.01, 0.01]),
+    ]
+    assert best(results, "constant").label == "b"
+    assert best(results, "uncontrolled") is None
