@@ -7,7 +7,9 @@
 * ``actions.png``: the action history of each evaluate / baseline / open-loop run;
 * ``coefficients.png``: drag and lift coefficients of each run against time, with the
   baseline (``--baseline``) drawn as a reference: the figure of Rabault et al. that shows
-  whether the controller reduced drag.
+  whether the controller reduced drag;
+* ``objective.png``: for environments that name an objective (the flap's mean tip
+  displacement), that metric per action of each run against time.
 
 matplotlib runs with the non-interactive Agg backend: plotting must work on a headless
 machine and never open a window.
@@ -368,6 +370,38 @@ def plot_coefficients(
     return _save(fig, plt, target / "coefficients")
 
 
+def plot_objective(runs: Sequence[Path], target: Path, baseline: Path | None = None) -> Path | None:
+    """``objective.png``: the env's objective per action (``TutorialEnv.objective``, e.g.
+    the flap's mean tip displacement) of every run, the baseline dashed in black; the
+    legend gives each run's mean over the drawn episode."""
+    members = [*runs, *([baseline] if baseline else [])]
+    drawn = []
+    for run in members:
+        env, history = _run_env(run), load_history(run)
+        if env is None or not env.objective or history is None or env.objective not in history:
+            continue
+        drawn.append((run, env.objective, history))
+    if not drawn:
+        return None
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 3.8))
+    episodes = set()
+    for k, (run, objective, history) in enumerate(drawn):
+        mask, episode = _episode_mask(history["episode"])
+        episodes.add(episode)
+        values = history[objective][mask]
+        is_baseline = baseline is not None and run.resolve() == baseline.resolve()
+        style = {"color": "k", "ls": "--", "lw": 1} if is_baseline else {"color": f"C{k}"}
+        label = f"{'baseline' if is_baseline else _label(run)} (mean {np.mean(values):.4g})"
+        ax.plot(history["time"][mask], values, label=label, **style)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(drawn[0][1].replace("_", " ") + " per action")
+    ax.set_title(f"Objective, lower is better (episode {', '.join(map(str, sorted(episodes)))})")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    return _save(fig, plt, target / "objective")
+
+
 def _save(fig: Any, plt: Any, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
@@ -401,6 +435,7 @@ def plot_command(args: argparse.Namespace) -> int:
         plot_reward(runs, target),
         plot_actions(runs, target, args.baseline),
         plot_coefficients(runs, target, args.baseline),
+        plot_objective(runs, target, args.baseline),
     ]
     written_paths = [p for p in written if p is not None]
     if not written_paths:
