@@ -11,7 +11,9 @@ says how to get them).
 from __future__ import annotations
 
 import math
+import os
 import shutil
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -146,3 +148,47 @@ def test_perpendicular_flap_runs_fsi_with_deal_ii_and_closes_mid_episode(
         run_dir / "fluid-openfoam" / "log.pimpleFoam"
     ).read_text(errors="replace")
     assert kill_recorded_groups(run_dir) == []
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@pytest.mark.dealii
+@pytest.mark.timeout(600)
+@pytest.mark.skipif(stack_which("elasticity") is None, reason="needs the deal.II adapter")
+@pytest.mark.parametrize("victim", ["fluid", "solid"])
+def test_killing_one_of_three_participants_leaves_nothing_of_the_other_behind(
+    tmp_path: Path, victim: str
+) -> None:
+    """PerpendicularFlapFast-v0: SIGKILL of the fluid or the solid mid-episode ends the
+    step with an error naming it, the other solver's process group is gone, and the next
+    reset starts a whole new three-participant run."""
+    from gymprecice.errors import CouplingError, SolverError
+    from gymprecice_tutorials.perpendicular_flap.fast import PerpendicularFlapFastEnv
+
+    env = PerpendicularFlapFastEnv(run_root=tmp_path, settle_time=0.2, episode_time=0.5)
+    try:
+        env.reset(seed=0, options={"split": "eval"})
+        env.step(np.array([2.0], np.float32))
+        solvers = {process.name: process for process in env._session.solvers}
+        assert set(solvers) == {"fluid", "solid"}
+        groups = {name: process.pgid for name, process in solvers.items()}
+        os.killpg(groups[victim], signal.SIGKILL)
+        with pytest.raises((SolverError, CouplingError)) as raised:
+            for _ in range(5):
+                env.step(np.array([2.0], np.float32))
+        assert victim in str(raised.value)
+        assert not any(_group_alive(pgid) for pgid in groups.values())
+        assert kill_recorded_groups(env.env_dir) == []
+        obs, info = env.reset(seed=1, options={"split": "eval"})
+        assert np.isfinite(obs).all() and info["start"]["split"] == "eval"
+        *_, truncated, _ = env.step(np.array([2.0], np.float32))
+        assert not truncated
+    finally:
+        env.close()
+    assert kill_recorded_groups(env.env_dir) == []

@@ -55,6 +55,13 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _non_negative_int(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be at least 0, got {value}")
+    return value
+
+
 def _positive_float(text: str) -> float:
     value = float(text)
     if not value > 0:
@@ -304,7 +311,16 @@ def _rollout_parsers(sub: Any) -> None:
     )
     _env_options(p, rollout=True)
     p.add_argument(
-        "--constants", type=_positive_int, default=9, help="constant actions, low to high"
+        "--constants",
+        type=_non_negative_int,
+        default=9,
+        help="constant actions, evenly from low to high (0: none)",
+    )
+    p.add_argument(
+        "--centre",
+        type=float,
+        default=0.5,
+        help="the sinusoids' centre as a fraction of the action box (0.5: its middle)",
     )
     p.add_argument(
         "--amplitudes",

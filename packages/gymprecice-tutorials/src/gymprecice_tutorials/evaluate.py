@@ -82,12 +82,17 @@ def zero_controller(space: gym.Space) -> Controller:
 
 
 def sine_controller(
-    space: gym.Space, amplitude: float, frequency: float, phase: float = 0.0
+    space: gym.Space,
+    amplitude: float,
+    frequency: float,
+    phase: float = 0.0,
+    centre: float = 0.5,
 ) -> Controller:
-    """``centre + amplitude * half_range * sin(2 pi f t + phase)`` on every action dimension."""
+    """``centre + amplitude * half_range * sin(2 pi f t + phase)`` on every action dimension,
+    clipped to the box; ``centre`` is a fraction of the box (0.5: its middle)."""
     if not isinstance(space, gym.spaces.Box):
         raise TypeError(f"open-loop needs a Box action space, got {space}")
-    centre = (space.high + space.low) / 2.0
+    centre = space.low + centre * (space.high - space.low)
     half = (space.high - space.low) / 2.0
 
     def act(obs: Any, t: float) -> np.ndarray:

@@ -110,6 +110,10 @@ def sweep_command(args: argparse.Namespace) -> int:
     except KeyError as exc:
         print(f"gymprecice sweep: {exc.args[0]}", file=sys.stderr)
         return 2
+    if not 0.0 <= args.centre <= 1.0:
+        raise SystemExit(
+            f"gymprecice sweep: --centre is a fraction of the action box, 0 to 1; got {args.centre}"
+        )
     amplitudes = parse_grid(args.amplitudes, "amplitudes")
     frequencies = parse_grid(args.frequencies, "frequencies")
     if any(f <= 0 for f in frequencies):
@@ -139,6 +143,7 @@ def sweep_command(args: argparse.Namespace) -> int:
             "env_kwargs": kwargs,
             "episodes": args.episodes,
             "constants": args.constants,
+            "centre": args.centre,
             "amplitudes": amplitudes,
             "frequencies": frequencies,
         },
@@ -178,13 +183,11 @@ def sweep_command(args: argparse.Namespace) -> int:
             report(result)
         for amplitude in amplitudes:
             for frequency in frequencies:
-                label = f"sine-a{amplitude:g}-f{frequency:g}"
-                result = SweepResult(
-                    label, "sinusoid", {"amplitude": amplitude, "frequency": frequency}
-                )
-                result.objectives = _run(
-                    env, sine_controller(space, amplitude, frequency), out / label, env_info, args
-                )
+                label = f"sine-c{args.centre:g}-a{amplitude:g}-f{frequency:g}"
+                settings = {"centre": args.centre, "amplitude": amplitude, "frequency": frequency}
+                result = SweepResult(label, "sinusoid", settings)
+                controller = sine_controller(space, amplitude, frequency, centre=args.centre)
+                result.objectives = _run(env, controller, out / label, env_info, args)
                 report(result)
     finally:
         env.close()
