@@ -1,4 +1,4 @@
-"""``gymprecice train | evaluate | baseline | open-loop | sweep | plot | ship-policy | policies``.
+"""``gymprecice train | evaluate | baseline | open-loop | sweep | compare | plot | ship-policy | policies``.
 
 Added to the ``gymprecice`` command line by the tutorials plugin. Every command that runs
 an environment writes into one output directory (``--out``, default
@@ -10,6 +10,7 @@ case file hashes, seeds, command line), so the directory alone says how it was m
     gymprecice baseline jet-cylinder --time 10
     gymprecice open-loop jet-cylinder --amplitude 0.5 --frequency 3
     gymprecice sweep perpendicular-flap-fast            # uncontrolled, constants, sinusoids
+    gymprecice compare runs/perpendicular-flap-fast/sweep runs/perpendicular-flap-fast/evaluate
     gymprecice plot runs/jet-cylinder/train runs/jet-cylinder/evaluate \\
         --baseline runs/jet-cylinder/baseline
     gymprecice ship-policy runs/jet-cylinder/train --name jet-cylinder \\
@@ -337,6 +338,20 @@ def _rollout_parsers(sub: Any) -> None:
     )
     p.set_defaults(func=_sweep)
 
+    p = _parser(
+        sub,
+        "compare",
+        help="compare evaluated controllers with the uncontrolled flow and the best open loop",
+        description="Read gymprecice sweep outputs (the open-loop candidates) and evaluate / "
+        "baseline / open-loop outputs (the controllers to judge), all on the same held-out "
+        "starts, and write compare.md and compare.json: the objective per start, and each "
+        "controller's margin over the uncontrolled flow, the best constant and the best "
+        "sinusoid, per start and as mean and spread. Runs nothing.",
+    )
+    p.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="output directories")
+    p.add_argument("--out", type=Path, default=None, help="where to write (None: beside RUN)")
+    p.set_defaults(func=_compare)
+
 
 def _baseline_option(p: argparse.ArgumentParser) -> None:
     p.add_argument(
@@ -449,6 +464,12 @@ def _sweep(args: argparse.Namespace) -> int:
     from gymprecice_tutorials.sweep import sweep_command
 
     return sweep_command(args)
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from gymprecice_tutorials.compare import compare_command
+
+    return compare_command(args)
 
 
 def _plot(args: argparse.Namespace) -> int:
