@@ -198,6 +198,11 @@ def _close_live_pools() -> None:
 class EnvPool:
     """N env workers behind deadlines, respawning failed envs (see the module docstring).
 
+    One pool is driven by one thread (the learner's). As with any ``forkserver`` or
+    ``spawn`` pool, a script that builds one must guard its entry point with
+    ``if __name__ == "__main__":``. With ``spawn``, a worker's parent is the thread that
+    started it; if that thread ends, the worker gets SIGTERM (and cleans up).
+
     Parameters
     ----------
     env_fns:
@@ -238,11 +243,6 @@ class EnvPool:
         (:class:`~gymprecice.vector.local.LocalBackend`), ``"ray"`` for Ray actors
         (:class:`~gymprecice.vector.ray.RayBackend`, needs ``gymprecice-core[ray]``), or
         a backend object.
-
-    One pool is driven by one thread (the learner's). As with any ``forkserver`` or
-    ``spawn`` pool, a script that builds one must guard its entry point with
-    ``if __name__ == "__main__":``. With ``spawn``, a worker's parent is the thread that
-    started it; if that thread ends, the worker gets SIGTERM (and cleans up).
     """
 
     def __init__(
