@@ -1,11 +1,11 @@
-"""Griffe extension for the documentation site: Sphinx roles in docstrings become links.
+"""Griffe extension for the documentation site: the docstrings' reST markup, as Markdown.
 
 The docstrings cross-reference with Sphinx roles (:class:`EnvPool`,
 :func:`gymprecice.rllib.register_env`), which Markdown shows verbatim. Each role becomes
 an optional cross-reference of mkdocs-autorefs: a link where the site renders the object,
 plain code where it does not (a standard-library or Gymnasium object, a private helper).
 Markdown references written as ``[name][gymprecice.x]`` stay strict and fail the build
-when they do not resolve.
+when they do not resolve. A reST literal-block marker (``text::``) becomes one colon.
 """
 
 from __future__ import annotations
@@ -15,6 +15,9 @@ from typing import Any
 
 import griffe
 
+#: reST's literal-block marker: "text::" (a colon stays) or a lone "::" (dropped); the
+#: indented block after it is already a code block in Markdown
+_LITERAL = re.compile(r"(?:(?<=\S):|\s*)::(?=[ \t]*\n[ \t]*\n)")
 _ROLE = re.compile(r":(?:py:)?(?:mod|class|func|meth|data|attr|exc|obj):`~?([^`<>]+?)`")
 
 
@@ -38,11 +41,11 @@ def _resolve(name: str, obj: griffe.Object) -> str:
 
 
 class SphinxRoles(griffe.Extension):
-    """Rewrite ``:role:`target``` in every docstring into an optional autoref."""
+    """Rewrite ``:role:`target``` into an optional autoref and ``text::`` into ``text:``."""
 
     def on_object(self, *, obj: griffe.Object, **kwargs: Any) -> None:
         docstring = obj.docstring
-        if docstring is None or ":`" not in docstring.value:
+        if docstring is None or ":" not in docstring.value:
             return
 
         def link(match: re.Match[str]) -> str:
@@ -54,4 +57,4 @@ class SphinxRoles(griffe.Extension):
                 f"<code>{shown}</code></autoref>"
             )
 
-        docstring.value = _ROLE.sub(link, docstring.value)
+        docstring.value = _LITERAL.sub(":", _ROLE.sub(link, docstring.value))
