@@ -132,6 +132,7 @@ def test_openfoam_example_runs_on_real_openfoam_and_precice(tmp_path: Path, monk
 
 
 GUIDES = {
+    "sb3_ppo.py": [],
     "cleanrl_ppo.py": [],
     "torchrl_ppo.py": [],
 }
