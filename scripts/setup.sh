@@ -8,7 +8,8 @@
 #    and what building preCICE needs (compiler, CMake, Boost, Eigen, libxml2).
 # 2. A virtual environment in .venv with the four distributions editable. torch is installed
 #    *pinned* before stable-baselines3 so pip takes the CPU build instead of resolving an
-#    unpinned torch with several GB of CUDA packages.
+#    unpinned torch with several GB of CUDA packages. Also the documentation site's
+#    dependencies (docs/requirements.txt) and TorchRL for its guide (examples/).
 # 3. `gymprecice install`: preCICE, pyprecice and both preCICE adapters, built from release
 #    sources into a per-user prefix (reused by every clone; a second run takes seconds).
 #    Sources: $GYMPRECICE_SOURCES (an offline mirror of the release archives; default: a
@@ -116,7 +117,8 @@ $PIP install -q --disable-pip-version-check \
   -e packages/gymprecice-openfoam \
   -e packages/gymprecice-dealii \
   -e "packages/gymprecice-tutorials[train]" \
-  pytest pytest-timeout "ruff==0.17.6" build mpi4py
+  pytest pytest-timeout "ruff==0.17.6" build mpi4py \
+  -r docs/requirements.txt "torchrl==0.14.1"
 phase ".venv ready"
 
 if [ "${GYMPRECICE_SKIP_STACK:-0}" != "1" ]; then

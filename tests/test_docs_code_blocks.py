@@ -1,11 +1,13 @@
-"""Every Python code block of README.md and docs/*.md runs (or at least compiles) in CI.
+"""Every Python code block of README.md and docs/**/*.md runs (or at least compiles) in CI.
 
 A block is executed on its own unless the HTML comment on the line before it says
 otherwise: ``<!-- docs-test: compile ... -->`` (it needs names the reader supplies),
-``<!-- docs-test: jet-env ... -->`` (the README's env: run against the test double with
+``<!-- docs-test: jet-env ... -->`` (docs/writing-an-env.md's env: run against the test double with
 the fake cylinder flow writing OpenFOAM-format probes and force coefficients), or
 ``<!-- docs-test: plugin -->`` (registered as a plugin and its hooks called). Blocks that
-define an env are constructed and stepped, so an example that cannot run fails here.
+define an env are constructed and stepped, so an example that cannot run fails here. A
+block that only includes a file (``--8<-- "examples/x.py"``) is skipped: the file is
+tested where it lives (tests/test_examples.py).
 """
 
 from __future__ import annotations
@@ -19,9 +21,11 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 _FENCE = re.compile(r"^```python[^\n]*\n(.*?)^```", re.M | re.S)
 _MARK = re.compile(r"<!--\s*docs-test:\s*([\w-]+)")
+#: a block that only includes a file (pymdownx.snippets): the file is tested where it lives
+_INCLUDE = re.compile(r"^(?:\s*--8<--.*\n?)+$")
 
 
 @dataclass(frozen=True)
@@ -33,7 +37,7 @@ class Block:
 
     @property
     def id(self) -> str:
-        return f"{self.file.name}:{self.line}"
+        return f"{self.file.relative_to(ROOT)}:{self.line}"
 
 
 def _blocks() -> list[Block]:
@@ -41,6 +45,8 @@ def _blocks() -> list[Block]:
     for path in DOCS:
         text = path.read_text()
         for match in _FENCE.finditer(text):
+            if _INCLUDE.match(match.group(1)):
+                continue
             line = text.count("\n", 0, match.start()) + 1
             before = text[: match.start()].rstrip("\n").rsplit("\n", 1)[-1]
             mark = _MARK.search(before)
@@ -114,7 +120,7 @@ def _jet_geometry_plugin(spec) -> types.ModuleType:
 
 
 def test_readme_jet_env_runs_against_the_double(tmp_path: Path, monkeypatch) -> None:
-    """The README's env, unchanged, on the fake cylinder flow (OpenFOAM-format outputs)."""
+    """The documented env, unchanged, on the fake cylinder flow (OpenFOAM-format outputs)."""
     from gymprecice.plugins import temporary_plugin
     from gymprecice_tutorials import fake_flow, recipes
 

@@ -125,3 +125,46 @@ def test_openfoam_example_runs_on_real_openfoam_and_precice(tmp_path: Path, monk
         assert not np.allclose(seen[0], seen[1])
     finally:
         env.close()
+
+
+# -- the training guides (docs/guides/): each script trains on the double and saves a policy
+# that `gymprecice evaluate` loads
+
+
+GUIDES = {
+    "sb3_ppo.py": [],
+    "cleanrl_ppo.py": [],
+    "torchrl_ppo.py": [],
+}
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("script", sorted(GUIDES))
+def test_training_guide_trains_on_the_double_and_evaluate_loads_its_policy(
+    script: str, tmp_path: Path, monkeypatch
+) -> None:
+    import subprocess
+    import sys
+
+    if script.startswith("torchrl"):
+        pytest.importorskip("torchrl", reason="TorchRL's guide needs torchrl (scripts/setup.sh)")
+    out = tmp_path / "policy"
+    proc = subprocess.run(
+        [sys.executable, str(EXAMPLES / script), "--double", "--out", str(out), *GUIDES[script]],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=540,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "320" in proc.stdout  # it ran the few hundred steps it was asked for
+    assert (out / "model.zip").is_file()
+
+    monkeypatch.chdir(tmp_path)
+    argv = ["evaluate", "jet-cylinder-fast", "--double", "--policy", str(out)]
+    assert main([*argv, "--episode-time", "0.25", "--out", str(tmp_path / "eval")]) == 0
+    import json
+
+    summary = json.loads((tmp_path / "eval" / "summary.json").read_text())
+    assert len(summary["episodes"]) == 1 and np.isfinite(summary["mean_return"])

@@ -143,13 +143,13 @@ def test_double_ramps_the_action_linearly_across_the_window(tmp_path: Path) -> N
             p = fake_precice.Participant("Fluid", str(config), 0, 1)
             ids = {}
             for name in spec.interfaces:
-                mesh = recipes._mesh_name("Fluid", name)
+                mesh = recipes.mesh_name("Fluid", name)
                 ids[mesh] = p.set_mesh_vertices(mesh, points)
             p.initialize()
             t = 0.0
             while p.is_coupling_ongoing():
                 dt = min(spec.flow.dt, p.get_max_time_step_size())
-                mesh = recipes._mesh_name("Fluid", "jet1")
+                mesh = recipes.mesh_name("Fluid", "jet1")
                 reads.append((t + dt, p.read_data(mesh, "Velocity", ids[mesh], dt)[:, 0].copy()))
                 p.advance(dt)
                 t += dt
@@ -161,7 +161,7 @@ def test_double_ramps_the_action_linearly_across_the_window(tmp_path: Path) -> N
     controller = fake_precice.Participant("Controller", str(config), 0, 1)
     ids = {}
     for name in spec.interfaces:
-        mesh = recipes._mesh_name("Controller", name)
+        mesh = recipes.mesh_name("Controller", name)
         ids[mesh] = controller.set_mesh_vertices(mesh, points)
     thread.start()
     controller.initialize()

@@ -4,8 +4,8 @@ Everything else tests the tutorials against the preCICE test double and a script
 these tests run them the way users do, with real ``pimpleFoam`` loading the
 OpenFOAM-preCICE adapter (and the deal.II adapter's ``elasticity`` for the flap). They
 are skipped, naming what is missing, on machines without preCICE or the adapters (none
-of the three is in a package registry; the README's "Real preCICE and the adapters"
-says how to get them).
+of the three is in a package registry; docs/get-started.md, "Real preCICE and the
+adapters", says how to get them).
 """
 
 from __future__ import annotations

@@ -105,7 +105,8 @@ def require_solvers(
     print(
         f"gymprecice {command}: {env.name} cannot run on real solvers on this machine; "
         f"missing: {names}.\n\n{doctor_text(report)}\n"
-        f"Install what is missing (see the advice above and the README's 'Real preCICE'), "
+        "Install what is missing (see the advice above and docs/get-started.md, 'Real "
+        "preCICE and the adapters'), "
         f"or add --double to run against gymprecice's preCICE test double.",
         file=sys.stderr,
     )

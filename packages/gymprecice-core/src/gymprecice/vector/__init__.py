@@ -13,6 +13,8 @@ contract, two backends, one room each:
   (``forkserver`` by default), in its own process group;
 * :mod:`~gymprecice.vector.ray`: each env in a Ray actor anywhere on a cluster
   (``backend="ray"``; needs ``gymprecice-core[ray]``, imported only when used);
+* :mod:`~gymprecice.vector.contract`: what crosses between the pool and a backend (the
+  ``Backend`` and ``Host`` protocols, the ``Reply`` of each request), read by both;
 * :mod:`~gymprecice.vector.host`: the env side both backends share;
 * facades: :class:`ResilientVectorEnv` (Gymnasium 1.x ``VectorEnv``) here, and
   :class:`gymprecice.sb3.ResilientSubprocVecEnv` (Stable-Baselines3 ``VecEnv``).
@@ -34,6 +36,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from gymprecice.vector.contract import Backend
 from gymprecice.vector.failures import (
     DEFAULT_FATAL_ERRORS,
     EnvFailedError,
@@ -48,7 +51,6 @@ from gymprecice.vector.pool import (
     DEFAULT_CLOSE_TIMEOUT,
     DEFAULT_RESET_TIMEOUT,
     DEFAULT_STEP_TIMEOUT,
-    Backend,
     EnvPool,
     StepResult,
 )

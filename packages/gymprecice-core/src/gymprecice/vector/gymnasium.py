@@ -48,7 +48,10 @@ class ResilientVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.metadata = dict(self.pool.metadata)
-        self.metadata["autoreset_mode"] = AutoresetMode.SAME_STEP
+        # as Gymnasium's own vector envs: in the metadata and as an attribute (TorchRL's
+        # GymWrapper reads the attribute to handle the same-step autoreset)
+        self.autoreset_mode = AutoresetMode.SAME_STEP
+        self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = self.pool.render_mode
         self._observations = create_empty_array(self.single_observation_space, self.num_envs)
 

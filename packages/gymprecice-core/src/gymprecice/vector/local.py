@@ -28,8 +28,8 @@ from typing import Any
 
 from gymprecice.processes import kill_recorded_groups
 from gymprecice.vector import host
+from gymprecice.vector.contract import CRASH, TIMEOUT, Reply
 from gymprecice.vector.failures import TAIL_LINES, describe_exception
-from gymprecice.vector.pool import CRASH, TIMEOUT, Reply
 
 #: seconds a reply may take to arrive completely once its first bytes are there
 MESSAGE_TIMEOUT_S = 60.0

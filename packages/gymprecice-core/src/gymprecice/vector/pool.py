@@ -19,7 +19,9 @@ up what its env started. Everything else is decided here, the same for every bac
 * hosts start concurrently and resets run concurrently without any global lock.
 
 A step is a generator per env (a *job*): it sends a request, yields the deadline of the
-answer, and gets back a :class:`Reply` (the message, a crash or a timeout).
+answer, and gets back a :class:`~gymprecice.vector.contract.Reply` (the message, a crash or
+a timeout). What a backend offers and returns is :mod:`gymprecice.vector.contract`, which
+the pool and the backends read; the pool imports a backend only when it makes one.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from collections import deque
 from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import cloudpickle
 import gymnasium as gym
@@ -43,6 +45,7 @@ import numpy as np
 
 from gymprecice.processes import describe_returncode
 from gymprecice.telemetry import Telemetry
+from gymprecice.vector.contract import TIMEOUT, Backend, Host, Reply
 from gymprecice.vector.failures import (
     DEFAULT_FATAL_ERRORS,
     TAIL_LINES,
@@ -82,66 +85,6 @@ class StepResult:
     @property
     def done(self) -> bool:
         return self.terminated or self.truncated
-
-
-@dataclass
-class Reply:
-    """What a backend got from an env's host: a message, or that it crashed or timed out."""
-
-    kind: str  # "message" | "crash" | "timeout"
-    value: Any = None
-
-
-CRASH = Reply("crash")
-TIMEOUT = Reply("timeout")
-
-
-class Host(Protocol):
-    """The pool's handle on one life of one env (a worker process, a Ray actor)."""
-
-    pid: int | None
-    log_path: Path
-
-    @property
-    def where(self) -> str:
-        """Where the env ran, for failure messages (``worker process (pid 12)``)."""
-        ...
-
-    def send(self, command: str, data: Any) -> None:
-        """Send one request; its reply comes through :meth:`Backend.wait`."""
-        ...
-
-    def kill(self) -> int | None:
-        """Stop the host at once; its exit status when known."""
-        ...
-
-    def tail(self, lines: int = TAIL_LINES) -> str:
-        """The end of the host's own output (for failure reports)."""
-        ...
-
-
-class Backend(Protocol):
-    """Where envs live: start, send (on the host), wait, kill, clean up."""
-
-    def spawn(self, index: int, payload: bytes, log_path: Path) -> Host:
-        """Start a host that builds env ``index``; its first reply says it is ready."""
-        ...
-
-    def wait(self, hosts: Mapping[int, Host], timeout: float | None) -> dict[int, Reply]:
-        """Wait up to ``timeout`` seconds for replies of ``hosts``; the ones that came."""
-        ...
-
-    def cleanup(self, run_dir: str | None, host: Host | None, grace: float) -> list[int]:
-        """Kill what the env recorded in its run directory, on the machine it ran on."""
-        ...
-
-    def close(self, hosts: Sequence[Host], timeout: float) -> None:
-        """Ask the hosts to close their envs; wait up to ``timeout`` for them to end."""
-        ...
-
-    def shutdown(self) -> None:
-        """Release what the backend holds once the pool is closed."""
-        ...
 
 
 @dataclass
@@ -198,6 +141,11 @@ def _close_live_pools() -> None:
 class EnvPool:
     """N env workers behind deadlines, respawning failed envs (see the module docstring).
 
+    One pool is driven by one thread (the learner's). As with any ``forkserver`` or
+    ``spawn`` pool, a script that builds one must guard its entry point with
+    ``if __name__ == "__main__":``. With ``spawn``, a worker's parent is the thread that
+    started it; if that thread ends, the worker gets SIGTERM (and cleans up).
+
     Parameters
     ----------
     env_fns:
@@ -238,11 +186,6 @@ class EnvPool:
         (:class:`~gymprecice.vector.local.LocalBackend`), ``"ray"`` for Ray actors
         (:class:`~gymprecice.vector.ray.RayBackend`, needs ``gymprecice-core[ray]``), or
         a backend object.
-
-    One pool is driven by one thread (the learner's). As with any ``forkserver`` or
-    ``spawn`` pool, a script that builds one must guard its entry point with
-    ``if __name__ == "__main__":``. With ``spawn``, a worker's parent is the thread that
-    started it; if that thread ends, the worker gets SIGTERM (and cleans up).
     """
 
     def __init__(

@@ -41,9 +41,9 @@ from ray.exceptions import GetTimeoutError, RayActorError, RayError
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
 from gymprecice.processes import kill_recorded_groups
+from gymprecice.vector.contract import CRASH, Reply
 from gymprecice.vector.failures import TAIL_LINES
 from gymprecice.vector.local import LocalBackend
-from gymprecice.vector.pool import CRASH, Reply
 
 __all__ = ["RayBackend", "solver_cpus"]
 

@@ -1,0 +1,153 @@
+"""Build the documentation site strictly, and say where each problem is.
+
+    python scripts/build_docs.py [--site-dir DIR]
+
+runs ``mkdocs build --strict`` on mkdocs.yml: a broken link, a missing page, an anchor that
+is not there or a docstring cross-reference that does not resolve fails the build. MkDocs
+names the page of a broken link but not its line, so each of its warnings is reported
+again as ``docs/PAGE.md:LINE: warning`` (the lines where the link's target is written).
+The build needs no network (no external inventories, the theme's fonts off) and writes to
+``site/`` (ignored by git). The test suite runs it (tests/test_docs_site.py).
+
+A machine without the site's dependencies gets their names and the command that installs
+them (docs/requirements.txt; scripts/setup.sh installs it into .venv).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import os
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+REQUIREMENTS = DOCS / "requirements.txt"
+
+_PINNED = re.compile(r"^\s*([A-Za-z0-9_.-]+)\s*==\s*([^\s;#]+)")
+#: MkDocs' and mkdocs-autorefs' warnings that name a page and a target but not a line
+_PAGE_WARNINGS = (
+    re.compile(
+        r"Doc file '(?P<page>[^']+)' contains (?:a|an unrecognized relative) link '(?P<target>[^']+)'"
+    ),
+    re.compile(
+        r"mkdocs_autorefs: (?P<page>[^:\s]+\.md): Could not find cross-reference target '(?P<target>[^']+)'"
+    ),
+)
+
+
+@dataclass(frozen=True)
+class Requirement:
+    name: str
+    version: str
+
+
+def requirements(path: Path = REQUIREMENTS) -> list[Requirement]:
+    """The pinned distributions the site is built with."""
+    found = []
+    for line in path.read_text().splitlines():
+        match = _PINNED.match(line)
+        if match:
+            found.append(Requirement(match.group(1), match.group(2)))
+    return found
+
+
+def missing_requirements(path: Path = REQUIREMENTS) -> list[str]:
+    """``name==version`` of each requirement that is absent or another version here."""
+    missing = []
+    for req in requirements(path):
+        try:
+            installed = importlib.metadata.version(req.name)
+        except importlib.metadata.PackageNotFoundError:
+            missing.append(f"{req.name}=={req.version} (not installed)")
+            continue
+        if installed != req.version:
+            missing.append(f"{req.name}=={req.version} (found {installed})")
+    return missing
+
+
+def install_advice(missing: list[str]) -> str:
+    """What to tell a machine without the site's dependencies."""
+    return (
+        f"the documentation site needs {', '.join(missing)} in {sys.executable}: run "
+        f"`{sys.executable} -m pip install -r {REQUIREMENTS.relative_to(ROOT)}` "
+        "(bash scripts/setup.sh does it)"
+    )
+
+
+def locate(warning: str, docs_dir: Path = DOCS) -> list[str]:
+    """``docs/PAGE:LINE: warning`` for each line of the page that writes the warning's target.
+
+    A warning that names no page (a docstring's, which griffe already places) or whose
+    target is not written in the page (a cross-reference inside a rendered docstring) comes
+    back unchanged.
+    """
+    for pattern in _PAGE_WARNINGS:
+        match = pattern.search(warning)
+        if match is None:
+            continue
+        page = docs_dir / match["page"]
+        if not page.is_file():
+            break
+        target = match["target"]
+        needles = (f"]({target})", f"]({target} ", f"][{target}]", f"[{target}][]", f"<{target}>")
+        lines = page.read_text().splitlines()
+        hits = [i for i, line in enumerate(lines, 1) if any(n in line for n in needles)]
+        if not hits:
+            hits = [i for i, line in enumerate(lines, 1) if target in line]
+        if hits:
+            where = (
+                page.relative_to(docs_dir.parent) if page.is_relative_to(docs_dir.parent) else page
+            )
+            return [f"{where}:{line}: {warning.strip()}" for line in hits]
+        break
+    return [warning.strip()]
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    ok: bool
+    problems: list[str]
+    output: str
+
+
+def build(site_dir: Path | None = None) -> BuildResult:
+    """``mkdocs build --strict``; ``problems`` are its warnings and errors, placed by line."""
+    missing = missing_requirements()
+    if missing:
+        return BuildResult(False, [install_advice(missing)], "")
+    command = [sys.executable, "-m", "mkdocs", "build", "--strict", "--config-file", "mkdocs.yml"]
+    if site_dir is not None:
+        command += ["--site-dir", str(site_dir)]
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "NO_COLOR": "1"}
+    proc = subprocess.run(
+        command, cwd=ROOT, capture_output=True, text=True, env=env, stdin=subprocess.DEVNULL
+    )
+    output = proc.stdout + proc.stderr
+    problems = []
+    for line in output.splitlines():
+        if line.startswith(("WARNING", "ERROR")):
+            problems += locate(line.split("-", 1)[1] if " -  " in line else line)
+    if proc.returncode != 0 and not problems:
+        problems = output.strip().splitlines()[-10:]
+    return BuildResult(proc.returncode == 0, problems, output)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n", 1)[0])
+    parser.add_argument("--site-dir", type=Path, default=None, help="where the site goes (site/)")
+    args = parser.parse_args(argv)
+    result = build(args.site_dir)
+    for problem in result.problems:
+        print(problem, file=sys.stderr)
+    if result.ok:
+        print(f"documentation site built in {args.site_dir or ROOT / 'site'}")
+    return 0 if result.ok else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
