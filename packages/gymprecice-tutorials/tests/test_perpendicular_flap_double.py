@@ -149,7 +149,7 @@ def test_an_episode_runs_from_a_gust_start_with_reward_minus_mean_tip_displaceme
         np.testing.assert_allclose(observation[:2], log.field("Displacement", rows)[-1], 1e-5)
         rewards.append(reward)
     assert len(rewards) == 5 and env.time == pytest.approx(1.5)
-    assert all(r < 0.0 for r in rewards)  # the gust left the flap swinging
+    assert max(-r for r in rewards) > 0.02  # the gust left the flap swinging
 
 
 def test_the_held_out_starts_differ(env: PerpendicularFlapFastEnv) -> None:

@@ -18,9 +18,9 @@ gymprecice_tutorials.perpendicular_flap.double:FlapOscillator``):
 
   with the real case's figures: a natural frequency of 0.62 Hz, a damping ratio of 0.02,
   and a static deflection ``x_s`` of 0.07 m with the jet on the flap (centre 1 m), which
-  the load's weighting takes to about 0.01 m with the jet at the top (centre 3 m). It is
-  integrated exactly over each step (constant load), so any time step gives the same
-  tip;
+  the load's weighting takes to about 0.01 m with the jet at the top (centre 3 m). Each
+  step is integrated exactly for the load read at its end, so the swing neither gains nor
+  loses energy to the integrator;
 * it writes the solid's watch-point log ``precice-Solid-watchpoint-Flap-Tip.log`` (in the
   solver directory ``solid-dealii``) in preCICE's format: one row at time 0, then one per
   completed window, so the env's observation and reward code runs unchanged. The tip sinks
