@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import stat
 from pathlib import Path
@@ -245,6 +246,27 @@ def test_watchpoint_output_reads_the_solids_log(env_dir: Path) -> None:
     )
     rows = reader.wait_until(0.01, timeout=1.0)
     np.testing.assert_allclose(reader.field("Displacement", rows)[-1], [1.2e-3, -2e-6])
+
+
+def test_a_stand_in_that_writes_the_log_itself_opts_into_the_reader(env_dir: Path) -> None:
+    # a scripted solid (kind "command") writes the watch-point log that preCICE would; the
+    # case's XML declares no watch point for it, or the test double would write one too
+    xml = env_dir / "precice-config.xml"
+    xml.write_text(re.sub(r"<watch-point [^>]*/>", "", xml.read_text()))
+    stand_in = context(env_dir, kind="command", options={"outputs": "dealii"})
+    reader = plugin.gymprecice_open_output(stand_in, "watchpoint", {"point": "Flap-Tip"})
+    assert isinstance(reader, WatchPointLog)
+    assert reader.path == stand_in.run_dir / "precice-Solid-watchpoint-Flap-Tip.log"
+    # without the option the reader is not the plugin's business; with it, still no probes
+    plain = context(env_dir, kind="command")
+    assert plugin.gymprecice_open_output(plain, "watchpoint", {"point": "Flap-Tip"}) is None
+    with pytest.raises(ConfigError, match="no output 'probes'"):
+        plugin.gymprecice_open_output(stand_in, "probes", {})
+    # a real deal.II solid on the same XML is still told to declare its watch point
+    with pytest.raises(ConfigError, match="no <watch-point name='Flap-Tip'>"):
+        plugin.gymprecice_open_output(
+            context(env_dir, precice=load_precice_config(xml)), "watchpoint", {"point": "Flap-Tip"}
+        )
 
 
 def test_unknown_watchpoints_and_outputs_are_reported(env_dir: Path) -> None:

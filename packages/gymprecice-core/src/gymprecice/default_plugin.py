@@ -71,7 +71,8 @@ KINDS = {
 DEFAULT_RESET_TIMEOUT = 600.0
 _SHARED_OPTIONS = ("prepare_timeout", "reset_timeout", "env", "log_name")
 #: the options each kind reads (see the module docstring). ``outputs`` is read by other
-#: plugins' output readers (``"openfoam"``: OpenFOAM-format function-object output).
+#: plugins' output readers (``"openfoam"``: OpenFOAM-format function-object output;
+#: ``"dealii"``: a preCICE watch-point log the solver writes itself).
 OPTIONS = {
     SCRIPT: ("run_script", "reset_script", "prerun_script", "interpreter", *_SHARED_OPTIONS),
     COMMAND: ("argv", "prepare_argv", "reset_argv", *_SHARED_OPTIONS),

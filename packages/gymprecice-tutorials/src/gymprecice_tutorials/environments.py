@@ -100,7 +100,6 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "gymprecice_tutorials.perpendicular_flap.fast:PerpendicularFlapFastEnv",
             "the flap's training case: damp the swing after a gust (coarse FSI, 3 s "
             "episodes from gust starts, three held out)",
-            double=False,
             recipe=False,
             open_loop_frequency=0.6,
             rollout_time=None,

@@ -188,6 +188,9 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
     * ``uncontrolled=True``: after the gust the inlet carries the reference inflow (the
       parabola across the whole inlet, as the packaged case's uncontrolled flap) whatever
       the action: the flap that a controller is judged against (``gymprecice baseline``).
+    * ``double=True``: the same controller against gymprecice's preCICE test double and a
+      scripted flap (:mod:`gymprecice_tutorials.perpendicular_flap.double`), no solvers
+      needed: what ``gymprecice train perpendicular-flap-fast --double`` runs.
     """
 
     def __init__(
@@ -198,6 +201,7 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         episode_time: float = 3.0,
         settle_time: float = 1.0,
         uncontrolled: bool = False,
+        double: bool = False,
         run_root: str | Path | None = None,
         **kwargs: Any,
     ) -> None:
@@ -210,13 +214,29 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
                 )
         self.episode_time = float(episode_time)
         self.settle_time = float(settle_time)
-        if options is None:
+        end_time = self.settle_time + self.episode_time
+        if options is None and double:
+            from gymprecice_tutorials.perpendicular_flap import double as flap_double
+
             options = write_case_files(
-                "perpendicular-flap-fast",
-                fast_case_files(self.settle_time + self.episode_time),
-                run_root,
+                "perpendicular-flap-fast-double", flap_double.double_case_files(end_time), run_root
+            )
+        elif options is None:
+            options = write_case_files(
+                "perpendicular-flap-fast", fast_case_files(end_time), run_root
+            )
+        elif double:
+            raise ValueError(
+                "double=True runs the packaged training case on the test double; with a case "
+                "of your own (options) leave double out"
             )
         super().__init__(options, idx, run_root=run_root, **kwargs)
+        if not any(solver.kind == "openfoam" for solver in self.config.solvers.values()):
+            # No fluid mesh a plugin could read (the test double's scripted flap): give the
+            # controller the training case's inlet faces.
+            from gymprecice_tutorials.perpendicular_flap import double as flap_double
+
+            self.set_interface_vertices(self.INLET, flap_double.training_inlet().coordinates)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(6,), dtype=np.float32)
         self.uncontrolled = bool(uncontrolled)
         self.start: Gust | None = None
