@@ -33,6 +33,12 @@
     ``{participant}``, ``{precice_config}`` (the env's own preCICE configuration). Only
     these exact tokens are replaced, so other braces (JSON arguments) are left alone.
 
+Both kinds take ``"divergence_patterns"``: regular expressions whose first matching log
+line (while the solver runs, or after it failed) means the solver diverged under the
+agent's actions, e.g. ``["Floating point exception", "Courant Number .* max: [0-9]{3,}"]``;
+see :func:`gymprecice.hookspecs.gymprecice_detect_divergence`. None by default: a generic
+program's failures are faults unless the case says otherwise.
+
 Both kinds export ``GYMPRECICE_ENV_INDEX``, ``GYMPRECICE_ENV_DIR``, ``GYMPRECICE_RUN_DIR``,
 ``GYMPRECICE_SOLVER``, ``GYMPRECICE_PARTICIPANT``, ``GYMPRECICE_PRECICE_CONFIG`` and, for
 reset, ``GYMPRECICE_SEED`` (drawn from the episode's seeded generator, so a reset script
@@ -48,6 +54,7 @@ from __future__ import annotations
 
 import difflib
 import os
+import re
 import shlex
 import shutil
 import sys
@@ -55,6 +62,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from gymprecice.divergence import first_match
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.hookspecs import hookimpl
 from gymprecice.precice_install import core_install_steps
@@ -69,7 +77,7 @@ KINDS = {
 }
 #: default seconds a reset script / reset command may take
 DEFAULT_RESET_TIMEOUT = 600.0
-_SHARED_OPTIONS = ("prepare_timeout", "reset_timeout", "env", "log_name")
+_SHARED_OPTIONS = ("prepare_timeout", "reset_timeout", "env", "log_name", "divergence_patterns")
 #: the options each kind reads (see the module docstring). ``outputs`` is read by other
 #: plugins' output readers (``"openfoam"``: OpenFOAM-format function-object output).
 OPTIONS = {
@@ -105,6 +113,7 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
         return None
     try:
         check_options(solver)
+        divergence_patterns(solver)
     except ConfigError as exc:
         return [str(exc)]
     return []
@@ -114,6 +123,7 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     if solver.kind in KINDS:
         check_options(solver)
+        divergence_patterns(solver)
     if solver.kind == SCRIPT:
         # Check every script now, so a missing run script fails at the first reset rather
         # than after a long prerun.
@@ -179,6 +189,36 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
                     f"(log in {solver.run_dir}); fix the script or the PATH and reset"
                 )
     return None
+
+
+@hookimpl(trylast=True)
+def gymprecice_detect_divergence(
+    solver: SolverContext, log_text: str, returncode: int | None
+) -> str | None:
+    if solver.kind not in KINDS:
+        return None
+    return first_match(log_text, divergence_patterns(solver))
+
+
+def divergence_patterns(solver: SolverContext) -> list[re.Pattern[str]]:
+    """The solver's ``divergence_patterns``, compiled; a bad one is a :class:`ConfigError`."""
+    raw = solver.options.get("divergence_patterns") or []
+    key = f"physics_simulation_engine.solvers.{solver.name}.options.divergence_patterns"
+    if isinstance(raw, str) or not isinstance(raw, list):
+        raise ConfigError(
+            f"{_where(solver)}: {key} is {raw!r}; give a list of regular expressions, e.g. "
+            '["Floating point exception"]'
+        )
+    compiled = []
+    for pattern in raw:
+        try:
+            compiled.append(re.compile(pattern))
+        except (re.error, TypeError) as exc:
+            raise ConfigError(
+                f"{_where(solver)}: {key} holds {pattern!r}, not a valid regular expression "
+                f"({exc}); fix or remove it"
+            ) from None
+    return compiled
 
 
 @hookimpl(trylast=True)
