@@ -53,6 +53,7 @@ This module is loaded on every ``import gymprecice``: it imports nothing heavy a
 from __future__ import annotations
 
 import difflib
+import functools
 import os
 import re
 import shlex
@@ -116,7 +117,34 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
         divergence_patterns(solver)
     except ConfigError as exc:
         return [str(exc)]
-    return []
+    return launch_problems(solver)
+
+
+def launch_problems(solver: SolverContext) -> list[str]:
+    """What preparing, resetting or launching would refuse, found without running anything.
+
+    The very checks of :func:`_script_argv` and :func:`_command_argv` (so ``gymprecice
+    check`` and ``reset()`` give the same messages), run on the pristine case: a missing
+    or non-executable script, a program in an argv that is not there or not executable,
+    and a script that an argv hands to an interpreter but that is not there.
+    """
+    problems = []
+    if solver.kind == SCRIPT:
+        roles = _present_script_roles(solver)
+        if "run_script" not in roles:
+            roles.append("run_script")
+        checks = [functools.partial(_script_argv, solver, role) for role in roles]
+    else:
+        checks = [
+            functools.partial(_command_argv, solver, key, required=key == "argv")
+            for key in ("prepare_argv", "reset_argv", "argv")
+        ]
+    for check in checks:
+        try:
+            check()
+        except (CaseError, ConfigError) as exc:
+            problems.append(str(exc))
+    return problems
 
 
 @hookimpl(trylast=True)
@@ -330,6 +358,7 @@ def _command_argv(solver: SolverContext, key: str, *, required: bool = False) ->
         )
     argv = [_substitute(str(arg), solver) for arg in raw]
     _check_program(solver, argv[0], key)
+    _check_interpreted_script(solver, argv, key)
     return argv
 
 
@@ -366,6 +395,28 @@ def _check_program(solver: SolverContext, program: str, key: str) -> None:
             f"{solver.describe()}: options.{key} starts with {program!r}, which is not an "
             f"executable {'file' if os.sep in program else 'program on PATH'}; install it, "
             f"fix PATH, or fix options.{key} in {_where(solver)}"
+        )
+
+
+#: programs that take a script file as their first argument
+_INTERPRETERS = re.compile(r"^(python[0-9.]*|bash|sh|dash|zsh|ksh|perl|ruby|node|Rscript)$")
+
+
+def _check_interpreted_script(solver: SolverContext, argv: list[str], key: str) -> None:
+    """``["python", "solver.py"]`` with no ``solver.py``: say so now, not in the log."""
+    program = Path(argv[0])
+    if not (_INTERPRETERS.match(program.name) or argv[0] == sys.executable) or len(argv) < 2:
+        return
+    script = argv[1]
+    if script.startswith("-") or "{" in script:
+        return  # an option (python -m module, bash -c text) or an unfilled placeholder
+    path = Path(script) if os.path.isabs(script) else solver.run_dir / script
+    if not path.exists():
+        shown = script if os.path.isabs(script) else solver.source_dir / script
+        raise CaseError(
+            f"{shown}: options.{key} runs {program.name} on this script, but it does not "
+            f"exist; add it to {solver.source_dir} or fix options.{key} in {_where(solver)} "
+            f"({solver.describe()})"
         )
 
 
