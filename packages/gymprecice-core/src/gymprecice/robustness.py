@@ -43,6 +43,7 @@ __all__ = [
     "ActuationDelay",
     "ObservationDropout",
     "SensorNoise",
+    "checked_spec",
     "parse_wrap_option",
     "wrap",
 ]
@@ -201,7 +202,7 @@ _SEEDED = {"action_noise", "sensor_noise", "dropout"}
 
 def wrap(env: gym.Env, spec: Mapping[str, Mapping[str, Any]] | None, seed: int | None = None):
     """``env`` inside the wrappers ``spec`` names (see the module docstring)."""
-    for name, options in _checked(spec).items():
+    for name, options in checked_spec(spec).items():
         cls, _ = WRAPPERS[name]
         kwargs = dict(options)
         if name in _SEEDED:
@@ -210,7 +211,8 @@ def wrap(env: gym.Env, spec: Mapping[str, Mapping[str, Any]] | None, seed: int |
     return env
 
 
-def _checked(spec: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
+def checked_spec(spec: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """``spec`` checked and in the order :func:`wrap` applies it (a ConfigError if bad)."""
     if not spec:
         return {}
     if not isinstance(spec, Mapping):
@@ -255,7 +257,7 @@ def parse_wrap_option(text: str) -> dict[str, dict[str, Any]]:
             )
         options[key.strip()] = _value(value.strip())
     spec = {name.strip(): options}
-    _checked(spec)
+    checked_spec(spec)
     return spec
 
 

@@ -117,12 +117,44 @@ def _env_options(p: argparse.ArgumentParser, *, rollout: bool) -> None:
     )
     p.set_defaults(rollout=rollout)
     p.add_argument(
+        "--wrap",
+        action="append",
+        type=_wrap,
+        default=[],
+        metavar="NAME:KEY=VALUE,...",
+        help="a robustness wrapper between the policy and the env (repeatable): "
+        "sensor_noise:std=0.05[,mode=absolute], action_noise:std=0.1, delay:steps=2, "
+        "dropout:p=0.1[,fill=0]; train also reads them from the hyperparameter file's "
+        "'robustness' key",
+    )
+    p.add_argument(
         "--env-kwargs",
         type=_json_object,
         default={},
         metavar="JSON",
         help="extra keyword arguments of the environment, e.g. '{\"lift_penalty\": 0.1}'",
     )
+
+
+def _wrap(text: str) -> dict[str, Any]:
+    from gymprecice.errors import ConfigError
+    from gymprecice.robustness import parse_wrap_option
+
+    try:
+        return parse_wrap_option(text)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def wrap_spec(*parts: Any) -> dict[str, Any]:
+    """Robustness specs merged (later ones win per wrapper) and checked."""
+    from gymprecice.robustness import checked_spec
+
+    merged: dict[str, Any] = {}
+    for part in parts:
+        for entry in part if isinstance(part, list) else [part or {}]:
+            merged.update(entry)
+    return checked_spec(merged)
 
 
 def add_commands(sub: Any) -> None:

@@ -45,6 +45,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from gymprecice_tutorials.cli import wrap_spec
 from gymprecice_tutorials.environments import TutorialEnv, find_environment
 from gymprecice_tutorials.envs import load_model, make_env_checked, vecnormalize_path
 from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
@@ -322,8 +323,18 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
             return status
     # The policy acts in [-1, 1] (training rescales); the fixed controllers act in the
     # env's own units, so that "zero" means jets closed.
-    env = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=command == "evaluate")
+    # the robustness wrappers' noise is seeded by each episode's reset seed
+    robustness = wrap_spec(getattr(args, "wrap", []))
+    env = make_env_checked(
+        env_info.name,
+        env_info.env_id,
+        0,
+        kwargs,
+        rescale=command == "evaluate",
+        robustness=robustness,
+    )
     settings: dict[str, Any] = {
+        "robustness": robustness,
         "env_id": env_info.env_id,
         "env_kwargs": kwargs,
         "episodes": args.episodes,

@@ -38,7 +38,9 @@ from typing import Any
 
 import gymnasium as gym
 
+from gymprecice.errors import ConfigError
 from gymprecice_tutorials import hyperparams as hp
+from gymprecice_tutorials.cli import wrap_spec
 from gymprecice_tutorials.environments import ENVIRONMENTS, TutorialEnv, find_environment
 from gymprecice_tutorials.envs import (
     make_env,
@@ -221,7 +223,12 @@ def train(
     monitor.mkdir(exist_ok=True)
     fns = [
         functools.partial(
-            make_env, env.env_id, i, dict(env_kwargs), monitor_file=str(monitor / f"env_{i}")
+            make_env,
+            env.env_id,
+            i,
+            dict(env_kwargs),
+            monitor_file=str(monitor / f"env_{i}"),
+            robustness=params.get("robustness"),
         )
         for i in range(n_envs)
     ]
@@ -482,6 +489,15 @@ def train_command(args: argparse.Namespace) -> int:
         if status:
             return status
     params = _params(args, env, out)
+    try:
+        robustness = wrap_spec(params.get("robustness"), getattr(args, "wrap", []))
+    except ConfigError as exc:
+        print(f"gymprecice train: {exc} (in --wrap or the hyperparameter file)", file=sys.stderr)
+        return 2
+    if robustness:
+        params["robustness"] = robustness
+    else:
+        params.pop("robustness", None)
     resume = None if args.fresh else newest_checkpoint(out / "checkpoints")
     if resume is not None:
         _refuse_changed_resume(out, params)
