@@ -35,6 +35,7 @@ from typing import Any
 
 from gymprecice_tutorials.environments import ENVIRONMENTS
 from gymprecice_tutorials.hyperparams import ALGORITHMS
+from gymprecice_tutorials.wrapping import parse_wrap_argument
 
 __all__ = ["add_commands"]
 
@@ -119,7 +120,7 @@ def _env_options(p: argparse.ArgumentParser, *, rollout: bool) -> None:
     p.add_argument(
         "--wrap",
         action="append",
-        type=_wrap,
+        type=parse_wrap_argument,
         default=[],
         metavar="NAME:KEY=VALUE,...",
         help="a robustness wrapper between the policy and the env (repeatable): "
@@ -134,27 +135,6 @@ def _env_options(p: argparse.ArgumentParser, *, rollout: bool) -> None:
         metavar="JSON",
         help="extra keyword arguments of the environment, e.g. '{\"lift_penalty\": 0.1}'",
     )
-
-
-def _wrap(text: str) -> dict[str, Any]:
-    from gymprecice.errors import ConfigError
-    from gymprecice.robustness import parse_wrap_option
-
-    try:
-        return parse_wrap_option(text)
-    except ConfigError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def wrap_spec(*parts: Any) -> dict[str, Any]:
-    """Robustness specs merged (later ones win per wrapper) and checked."""
-    from gymprecice.robustness import checked_spec
-
-    merged: dict[str, Any] = {}
-    for part in parts:
-        for entry in part if isinstance(part, list) else [part or {}]:
-            merged.update(entry)
-    return checked_spec(merged)
 
 
 def add_commands(sub: Any) -> None:

@@ -45,7 +45,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice_tutorials.cli import wrap_spec
 from gymprecice_tutorials.environments import TutorialEnv, find_environment
 from gymprecice_tutorials.envs import load_model, make_env_checked, vecnormalize_path
 from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
@@ -59,6 +58,7 @@ from gymprecice_tutorials.shipped_policies import (
     shipped_policies,
 )
 from gymprecice_tutorials.train import build_env_kwargs, default_out
+from gymprecice_tutorials.wrapping import WrapError, wrap_spec
 
 __all__ = [
     "change_against",
@@ -324,7 +324,11 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
     # The policy acts in [-1, 1] (training rescales); the fixed controllers act in the
     # env's own units, so that "zero" means jets closed.
     # the robustness wrappers' noise is seeded by each episode's reset seed
-    robustness = wrap_spec(getattr(args, "wrap", []))
+    try:
+        robustness = wrap_spec(getattr(args, "wrap", []))
+    except WrapError as exc:
+        print(f"gymprecice {command}: {exc}", file=sys.stderr)
+        return 2
     env = make_env_checked(
         env_info.name,
         env_info.env_id,

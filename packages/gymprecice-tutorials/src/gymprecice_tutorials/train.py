@@ -38,9 +38,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from gymprecice.errors import ConfigError
 from gymprecice_tutorials import hyperparams as hp
-from gymprecice_tutorials.cli import wrap_spec
 from gymprecice_tutorials.environments import ENVIRONMENTS, TutorialEnv, find_environment
 from gymprecice_tutorials.envs import (
     make_env,
@@ -55,6 +53,7 @@ from gymprecice_tutorials.requirements import (
     require_solvers,
 )
 from gymprecice_tutorials.training_log import merge_progress, segment_logger
+from gymprecice_tutorials.wrapping import WrapError, wrap_spec
 
 __all__ = [
     "build_env_kwargs",
@@ -491,7 +490,7 @@ def train_command(args: argparse.Namespace) -> int:
     params = _params(args, env, out)
     try:
         robustness = wrap_spec(params.get("robustness"), getattr(args, "wrap", []))
-    except ConfigError as exc:
+    except WrapError as exc:
         print(f"gymprecice train: {exc} (in --wrap or the hyperparameter file)", file=sys.stderr)
         return 2
     if robustness:
