@@ -14,6 +14,8 @@ from gymprecice_openfoam import plugin
 
 #: pimpleFoam's log, written as the run goes: the Courant number grows step by step
 HEALTHY = """\
+trapFpe: Floating point exception trapping enabled (FOAM_SIGFPE).
+sigFpe : Enabling floating point exception trapping (FOAM_SIGFPE).
 Courant Number mean: 0.0213 max: 0.412
 deltaT = 0.0005
 Time = 0.3355
@@ -80,7 +82,8 @@ def test_other_deaths_and_healthy_runs_are_not_divergence(pm, tmp_path):
     solver = _solver(tmp_path, max_courant=5)
     assert _detect(pm, solver, MISSING_LIBRARY, 127) is None
     assert _detect(pm, solver, HEALTHY, None) is None
-    assert _detect(pm, solver, HEALTHY, 1) is None
+    assert _detect(pm, solver, HEALTHY, 1) is None  # the banner naming the trap is not it
+    assert _detect(pm, solver, FPE, None) is None  # still running: only the Courant guard
 
 
 def test_the_courant_guard_ends_a_running_solver_past_its_limit(pm, tmp_path):

@@ -7,8 +7,11 @@ step integrates. OpenFOAM then shows it in its log, before or as it dies:
   every time step by the transient solvers). With the solver option ``max_courant`` the
   episode ends as soon as the last written maximum passes that limit (or is not finite),
   *before* the solver crashes and while its state is still readable;
-* the floating-point trap fires (``Floating point exception``, ``sigFpe``);
+* the floating-point trap fires (``Foam::sigFpe::sigHandler`` in the stack trace);
 * a solver loop gives up (``Maximum number of iterations exceeded``).
+
+The last two are read only once the solver has failed; while it runs, only the Courant
+guard applies.
 
 Each is reported with the log line that shows it and the log's last ``Time =``. Anything
 else (a missing library, a fatal error in a dictionary, a signal from outside) is not
@@ -28,10 +31,13 @@ __all__ = ["COURANT_OPTION", "EXIT_PATTERNS", "courant_limit", "detect"]
 
 #: solver option: the Courant number past which the episode ends (absent: no guard)
 COURANT_OPTION = "max_courant"
-#: log lines of a solver that died of divergence
+#: log lines of a solver that died of divergence: the FPE trap's stack frame, the line a
+#: shell prints for SIGFPE, an iteration limit. Anchored and specific, because every
+#: OpenFOAM log starts with a banner naming the trap ("trapFpe: Floating point exception
+#: trapping enabled", "sigFpe : Enabling floating point exception trapping").
 EXIT_PATTERNS = (
-    re.compile(r"Floating point exception"),
-    re.compile(r"sigFpe"),
+    re.compile(r"sigFpe::sigHandler"),
+    re.compile(r"^\s*Floating point exception(?! trapping)"),
     re.compile(r"[Mm]aximum number of iterations exceeded"),
 )
 _COURANT = re.compile(r"^\s*Courant Number mean:\s*(\S+)\s+max:\s*(\S+)", re.MULTILINE)
@@ -55,7 +61,7 @@ def courant_limit(solver: SolverContext) -> float | None:
 def detect(solver: SolverContext, log_text: str, returncode: int | None) -> str | None:
     """Evidence of divergence in the log's tail, or ``None`` (see the module docstring)."""
     evidence = _courant_past_limit(log_text, courant_limit(solver))
-    if evidence is None:
+    if evidence is None and returncode not in (None, 0):  # how it died: only once it has
         line = first_match(log_text, EXIT_PATTERNS)
         evidence = f"log line {line!r}" if line else None
     if evidence is None:
