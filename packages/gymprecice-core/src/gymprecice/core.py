@@ -548,8 +548,18 @@ class Adapter(gym.Env):
         self._steps += 1
         after = time.perf_counter()
         self._output_wait[0] = 0.0
-        obs = self._observed()
-        reward = self._rewarded()
+        try:
+            obs = self._observed()
+            reward = self._rewarded()
+        except NonFiniteValueError:
+            # NaN forces are what a diverging flow writes first; its log may lag behind
+            # its output files (buffered), so give the plugins a moment to confirm.
+            evidence = self._confirm_divergence(session)
+            if evidence is None:
+                self._end_episode(abort=True)
+                raise
+            self._end_episode(abort=True)
+            return self._diverged(evidence, started)
         terminated = bool(self._get_terminated())
         truncated = not state.ongoing and not terminated
         output_wait = self._output_wait[0]
@@ -762,6 +772,15 @@ class Adapter(gym.Env):
                 if evidence:
                     return Divergence(process.name, self.time, evidence)
         return None
+
+    def _confirm_divergence(self, session: Any, patience: float = 5.0) -> Divergence | None:
+        """Watch the solvers' logs for up to ``patience`` s (bounded by the progress timeout)."""
+        deadline = time.monotonic() + min(patience, self._timeouts.progress)
+        while True:
+            evidence = self._watch_all(session)
+            if evidence is not None or time.monotonic() >= deadline:
+                return evidence
+            time.sleep(0.2)
 
     def _divergence(self, exc: Exception, session: Any) -> Divergence | None:
         """Whether a failed step is the solver's divergence rather than a fault.
