@@ -104,6 +104,9 @@ def test_divergence_is_not_a_failure_but_a_kill_in_the_same_run_is(case, tmp_pat
         assert final["_diverged"].tolist() == [True, False]
         assert final["diverged"]["solver"][0] == "fluid"
         assert [f.env_index for f in venv.failures] == [1]
+        counted = venv.pool.telemetry.drain()  # what the training log records
+        assert (counted["divergences"], counted["failures"]) == (1.0, 1.0)
+        assert "1 failures, 1 divergences" in venv.pool.telemetry.summary()
         assert venv.failures[0].type.endswith("SolverCrashedError")
         # both go on: env 0 autoresets clean, env 1 was respawned
         for _ in range(3):
