@@ -192,3 +192,40 @@ def test_killing_one_of_three_participants_leaves_nothing_of_the_other_behind(
     finally:
         env.close()
     assert kill_recorded_groups(env.env_dir) == []
+
+
+@pytest.mark.timeout(600)
+def test_a_jet_far_beyond_its_bound_diverges_as_an_outcome_and_the_next_episode_runs(
+    tmp_path: Path,
+) -> None:
+    """pimpleFoam pushed past what its time step integrates: an episode outcome.
+
+    The quickstart's jets at a thousand times their bound blow the flow up: OpenFOAM's
+    floating-point trap or an iteration limit ends the solver. The step must say so
+    (``terminated``, the penalty, ``info["diverged"]``) instead of raising, and the next
+    reset must start clean and run a whole episode.
+    """
+    from gymprecice_tutorials.jet_cylinder.environment import MAX_FLOW_RATE
+    from gymprecice_tutorials.quickstart.environment import QuickstartEnv
+
+    short = {"prerun_end_time": 0.05, "actions_per_episode": 6}
+    env = QuickstartEnv(run_root=tmp_path, case_overrides=short, max_flow_rate=1000 * MAX_FLOW_RATE)
+    try:
+        env.reset(seed=1)
+        outcome = None
+        for _ in range(6):
+            _, reward, terminated, truncated, info = env.step(env.action_space.high)
+            if terminated or truncated:
+                outcome = (reward, terminated, info)
+                break
+        assert outcome is not None and outcome[1], "the flow did not diverge"
+        reward, _, info = outcome
+        assert reward == env.divergence_penalty
+        assert info["diverged"]["solver"] == "fluid"
+        assert info["diverged"]["evidence"]
+        coefficients, _ = _episode(env, 0.0, seed=2)  # clean again, to the end
+        assert all(math.isfinite(cd) for cd, _ in coefficients)
+        run_dir = env.env_dir
+    finally:
+        env.close()
+    assert kill_recorded_groups(run_dir) == []

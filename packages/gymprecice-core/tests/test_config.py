@@ -34,6 +34,9 @@ def test_explicit_form_resolves_interfaces_and_partner_meshes(case_dir: Path) ->
 
 def test_paper_form_is_accepted(case_dir: Path) -> None:
     (case_dir / "fluid-openfoam").mkdir()
+    for script in ("reset.sh", "run.sh"):
+        (case_dir / "fluid-openfoam" / script).write_text("#!/bin/sh\n")
+        (case_dir / "fluid-openfoam" / script).chmod(0o755)
     path = _write(
         case_dir,
         {

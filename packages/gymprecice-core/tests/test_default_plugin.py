@@ -362,3 +362,70 @@ def test_known_options_pass_validation(tmp_path: Path) -> None:
     assert default_plugin.gymprecice_validate_case(solver) == []
     other = make_solver_context("openfoam", solver.source_dir, tmp_path, options={"np": 2})
     assert default_plugin.gymprecice_validate_case(other) is None
+
+
+# -- check catches what launching would refuse ----------------------------------------------
+
+
+@pytest.fixture
+def broken_case(tmp_path, make_case, base_config):
+    """``broken_case(kind, options)``: the default test case with solver fluid's kind/options."""
+
+    def make(kind: str, options: dict) -> Path:
+        config = base_config()
+        config["physics_simulation_engine"]["solvers"]["fluid"].update(kind=kind, options=options)
+        return make_case(tmp_path / "case", config)
+
+    return make
+
+
+@pytest.mark.parametrize(
+    ("kind", "options", "prepare", "shown"),
+    [
+        ("script", {"run_script": "run.sh"}, None, "the run script 'run.sh' does not exist"),
+        ("script", {"run_script": "run.sh"}, "run.sh:644", "is not executable; run `chmod +x"),
+        ("command", {"argv": ["./solve"]}, None, "'./solve', which is not an executable file"),
+        ("command", {"argv": ["./solve"]}, "solve:644", "is not executable; run `chmod +x"),
+        ("command", {"argv": ["no-such-program-x"]}, None, "not an executable program on PATH"),
+        ("command", {"argv": ["python3", "solver.py"]}, None, "runs python3 on this script"),
+        ("command", {"argv": ["{python}", "solver.py", "-v"]}, None, "on this script"),
+    ],
+)
+def test_check_refuses_what_reset_would_with_the_same_message(
+    broken_case, capsys, kind, options, prepare, shown
+):
+    from gymprecice.cli import main
+    from gymprecice.config import load_config
+
+    case = broken_case(kind, options)
+    if prepare:
+        name, mode = prepare.split(":")
+        (case / "fluid" / name).write_text("#!/bin/sh\n")
+        (case / "fluid" / name).chmod(int(mode, 8))
+    assert main(["check", str(case)]) == 1
+    reported = capsys.readouterr().err
+    assert shown in reported
+    # reset() (through the launch hook on the env's copy) says the same
+    config = load_config(case, validate_cases=False)
+    spec = config.solvers["fluid"]
+    solver = SolverContext(
+        name="fluid",
+        kind=kind,
+        run_dir=case / "fluid",
+        source_dir=case / "fluid",
+        env_dir=case,
+        participant="Fluid",
+        options=dict(spec.options),
+        config_file=config.file,
+    )
+    with pytest.raises((CaseError, ConfigError)) as raised:
+        default_plugin.gymprecice_launch_solver(solver=solver)
+    assert str(raised.value) in reported
+
+
+def test_check_accepts_a_case_that_launches(broken_case, capsys):
+    from gymprecice.cli import main
+
+    case = broken_case("command", {"argv": ["{python}", "solver.py"]})
+    (case / "fluid" / "solver.py").write_text("print('hi')\n")
+    assert main(["check", str(case)]) == 0, capsys.readouterr().err

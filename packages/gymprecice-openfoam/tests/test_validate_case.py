@@ -111,6 +111,22 @@ def test_a_patch_absent_from_the_boundary_file(capsys, tmp_path: Path) -> None:
     assert str(case / "fluid-openfoam" / "constant" / "polyMesh" / "boundary") in err
 
 
+def test_a_patch_absent_from_the_block_mesh_dict_of_an_unbuilt_mesh(capsys, tmp_path) -> None:
+    """No mesh yet: the patches blockMesh will make are read from its dictionary."""
+    case = _case(tmp_path)
+    fluid = case / "fluid-openfoam"
+    (fluid / "constant" / "polyMesh" / "boundary").unlink()
+    (fluid / "system" / "blockMeshDict").write_text(testing.cylinder_block_mesh_dict())
+    status, err = _check(capsys, case)
+    assert status == 0, err
+    _edit(fluid / "system" / "preciceDict", "jet2\n", "jet3\n")
+    status, err = _check(capsys, case)
+    assert status == 1
+    pdict = fluid / "system" / "preciceDict"
+    assert f"{pdict}: interface 'Jet2' names patch 'jet3', which " in err
+    assert f"{fluid / 'system' / 'blockMeshDict'} does not have (did you mean 'jet2'?)" in err
+
+
 @pytest.mark.parametrize(
     ("participant", "message"),
     [

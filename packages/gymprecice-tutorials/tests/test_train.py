@@ -606,3 +606,27 @@ def test_one_interpolated_window_per_action_is_drawn_as_a_ramp(tmp_path):
     config["actions"] = {"windows": 50, "scheme": "ramp"}
     (case / "gymprecice-config.json").write_text(json.dumps(config))
     assert plots._action_scheme(tmp_path) == ("ramp", 50)
+
+
+def test_evaluate_under_sensor_noise_is_seeded_and_bad_wrappers_are_refused(recorded):
+    """A shipped or trained policy is tested for robustness without retraining."""
+    root: Path = recorded["root"]  # type: ignore[assignment]
+    common = ["evaluate", "quickstart", "--double", "--episode-time", "0.1"]
+    common += ["--model", "train/model.zip"]
+    noisy = ["--wrap", "sensor_noise:std=0.5,mode=relative", "--wrap", "delay:steps=1"]
+    for out in ("noisy-a", "noisy-b"):
+        _ok(_cli(root, *common, *noisy, "--out", out))
+    a = [float(r["action_0"]) for r in _history(root / "noisy-a" / "history.csv")]
+    b = [float(r["action_0"]) for r in _history(root / "noisy-b" / "history.csv")]
+    clean = [float(r["action_0"]) for r in _history(root / "evaluate-again" / "history.csv")]
+    assert a == b  # the same seed, the same noise
+    assert a[0] == 0.0  # the delay: the first step applies the initial (zero) action
+    assert not np.allclose(a[1:], clean[: len(a) - 1])
+    manifest = json.loads((root / "noisy-a" / "manifest.json").read_text())
+    assert manifest["settings"]["robustness"] == {
+        "delay": {"steps": 1},
+        "sensor_noise": {"std": 0.5, "mode": "relative"},
+    }
+    bad = _cli(root, *common, "--wrap", "sensor_noise:sdt=0.5", "--out", "bad")
+    assert bad.returncode == 2
+    assert "unknown option sensor_noise.sdt (did you mean 'std'?)" in bad.stderr

@@ -36,6 +36,9 @@ class EnvironmentSection(_Strict):
     name: str = "gymprecice"
     #: where each env's run directory ``env_<idx>`` is made (relative: to the working dir)
     run_root: str = "gymprecice-runs"
+    #: reward of the step in which a solver diverged (None: the environment's own default,
+    #: ``Adapter.divergence_penalty``); a finite number
+    divergence_penalty: float | None = Field(default=None, allow_inf_nan=False, strict=True)
 
 
 class SolverSection(_Strict):

@@ -13,7 +13,10 @@ Everything generic is done here: configuration, the env's run directory, prepari
 resetting and launching solvers through plugins, the preCICE participant (in a watched
 worker process), time windows and the smoothing of actions across them, seeding, and
 clean teardown. Reaching the coupling's end time truncates the episode (a time limit, not
-a terminal state).
+a terminal state). A solver that diverges under the agent's actions terminates it, with
+the env's ``divergence_penalty`` as reward and ``info["diverged"]`` (see
+:mod:`gymprecice.divergence`); a non-finite observation or reward from the user's methods
+is refused with the method's name and the step, never handed to the learner.
 """
 
 from __future__ import annotations
@@ -41,7 +44,15 @@ from gymprecice.config import (
     load_config,
 )
 from gymprecice.coupling import CouplingSession, CouplingState, WorkerProcess
-from gymprecice.errors import CaseError, ConfigError
+from gymprecice.divergence import HARD_FAULT_STATUSES, Divergence, checked_penalty
+from gymprecice.errors import (
+    CaseError,
+    ConfigError,
+    CouplingError,
+    SolverDivergedError,
+    SolverError,
+    SolverTimeoutError,
+)
 from gymprecice.pidregistry import kill_recorded_groups
 from gymprecice.plugins import get_plugin_manager, solver_kinds
 from gymprecice.processes import PidRegistry, SolverProcess
@@ -198,6 +209,10 @@ class Adapter(gym.Env):
     """Base class of every gymprecice environment (see the module docstring)."""
 
     metadata: dict[str, Any] = {"render_modes": []}
+    #: Reward of the step in which a solver diverged; the configuration's
+    #: ``environment.divergence_penalty`` overrides it. Pick it on the scale of the task's
+    #: rewards: low enough that diverging never pays better than controlling.
+    divergence_penalty: float = -10.0
 
     def __init__(
         self,
@@ -215,6 +230,12 @@ class Adapter(gym.Env):
             )
         self.config: GymPreciceConfig = load_config(options, case_dir=case_dir)
         check_solver_kinds(self.config, solver_kinds())
+        configured = self.config.model.environment.divergence_penalty
+        self._divergence_penalty = checked_penalty(
+            type(self).divergence_penalty if configured is None else configured,
+            self.config.where() if configured is not None else type(self).__qualname__,
+            "environment.divergence_penalty" if configured is not None else "divergence_penalty",
+        )
         self._run_root = run_root
         #: held while this env owns an index it was not given (see _claim_index)
         self._claim: EnvIndexClaim | None = None
@@ -250,6 +271,9 @@ class Adapter(gym.Env):
         self.dt: float | None = self.config.time_window_size
         self.end_time: float | None = self.config.end_time
         self._last_read: DataDict = DataDict()
+        #: the last observation handed out: what a diverged step returns
+        self._last_obs: Any = None
+        self._steps = 0
 
     # -- the user API ----------------------------------------------------------------------
     def _get_action(self, action: Any, write_var_list: list[DataRef]) -> Mapping[Any, Any]:
@@ -457,6 +481,7 @@ class Adapter(gym.Env):
             progress_timeout=self._timeouts.progress,
             kill_grace=self._timeouts.kill_grace,
             health_check=self._health_check,
+            watch=self._watch_solver,
         )
         self._session = session
         try:
@@ -482,7 +507,8 @@ class Adapter(gym.Env):
         self._episode_active = True
         self._episode_over = False
         self._apply(state)
-        obs = self._get_observation(self._last_read, self.read_var_list)
+        self._steps = 0
+        obs = self._observed()
         info = self._info(state, {"reset_s": time.perf_counter() - started})
         return obs, info
 
@@ -499,19 +525,41 @@ class Adapter(gym.Env):
         writes = [self._collect_write(value) for value in self._schedule.spread(action, windows)]
         env_s = time.perf_counter() - started
         waited = time.perf_counter()
+        session = self._session
         try:
-            state = self._session.advance(writes, self._timeouts.step)
+            state = session.advance(writes, self._timeouts.step)
+        except (SolverError, CouplingError) as exc:
+            self._end_episode(abort=True)
+            divergence = self._divergence(exc, session)
+            if divergence is None:
+                raise
+            return self._diverged(divergence, started)
         except BaseException:
-            # A solver error, Ctrl-C, or SystemExit from the user's own signal handler: the
-            # episode cannot go on, and nothing of it may outlive this env.
+            # Ctrl-C, or SystemExit from the user's own signal handler: the episode cannot
+            # go on, and nothing of it may outlive this env.
             self._end_episode(abort=True)
             raise
+        evidence = self._watch_all(session)
+        if evidence is not None:  # diverging, though the step itself completed
+            self._end_episode(abort=True)
+            return self._diverged(evidence, started)
         wait_s = time.perf_counter() - waited
         self._apply(state)
+        self._steps += 1
         after = time.perf_counter()
         self._output_wait[0] = 0.0
-        obs = self._get_observation(self._last_read, self.read_var_list)
-        reward = float(self._get_reward())
+        try:
+            obs = self._observed()
+            reward = self._rewarded()
+        except NonFiniteValueError:
+            # NaN forces are what a diverging flow writes first; its log may lag behind
+            # its output files (buffered), so give the plugins a moment to confirm.
+            evidence = self._confirm_divergence(session)
+            if evidence is None:
+                self._end_episode(abort=True)
+                raise
+            self._end_episode(abort=True)
+            return self._diverged(evidence, started)
         terminated = bool(self._get_terminated())
         truncated = not state.ongoing and not terminated
         output_wait = self._output_wait[0]
@@ -695,6 +743,93 @@ class Adapter(gym.Env):
             "timing": Timing(timing),
         }
 
+    # -- divergence and guards ------------------------------------------------------------
+    def _observed(self) -> Any:
+        """The user's observation, refused if it holds NaN or infinity."""
+        obs = self._get_observation(self._last_read, self.read_var_list)
+        _refuse_non_finite(obs, "_get_observation", self.env_index, self._steps)
+        self._last_obs = obs
+        return obs
+
+    def _rewarded(self) -> float:
+        reward = float(self._get_reward())
+        _refuse_non_finite(reward, "_get_reward", self.env_index, self._steps)
+        return reward
+
+    def _watch_solver(self, process: SolverProcess) -> str | None:
+        """Divergence evidence from a running solver's log (the coupling's ``watch``)."""
+        ctx = self._solvers.get(process.name)
+        if ctx is None:
+            return None
+        return self._hook.gymprecice_detect_divergence(
+            solver=ctx, log_text=process.log_tail(200), returncode=None
+        )
+
+    def _watch_all(self, session: Any) -> Divergence | None:
+        for process in session.solvers:
+            if process.poll() is None:
+                evidence = self._watch_solver(process)
+                if evidence:
+                    return Divergence(process.name, self.time, evidence)
+        return None
+
+    def _confirm_divergence(self, session: Any, patience: float = 5.0) -> Divergence | None:
+        """Watch the solvers' logs for up to ``patience`` s (bounded by the progress timeout)."""
+        deadline = time.monotonic() + min(patience, self._timeouts.progress)
+        while True:
+            evidence = self._watch_all(session)
+            if evidence is not None or time.monotonic() >= deadline:
+                return evidence
+            time.sleep(0.2)
+
+    def _divergence(self, exc: Exception, session: Any) -> Divergence | None:
+        """Whether a failed step is the solver's divergence rather than a fault.
+
+        A hang stays a fault, and so does a culprit killed from outside or crashed by
+        its binary (:data:`~gymprecice.divergence.HARD_FAULT_STATUSES`). Otherwise each
+        solver's plugin classifies its exit and log, the failing solver first.
+        """
+        if isinstance(exc, SolverDivergedError):
+            return Divergence(exc.solver or "solver", self.time, exc.evidence)
+        if isinstance(exc, SolverTimeoutError) or session is None:
+            return None
+        culprit = getattr(exc, "solver", None)
+        processes = sorted(session.solvers, key=lambda p: p.name != culprit)
+        for process in processes:
+            status = process.poll()
+            if process.name == culprit and status in HARD_FAULT_STATUSES:
+                return None
+            ctx = self._solvers.get(process.name)
+            if ctx is None or status is None:
+                continue
+            evidence = self._hook.gymprecice_detect_divergence(
+                solver=ctx, log_text=process.log_tail(200), returncode=status
+            )
+            if evidence:
+                return Divergence(process.name, self.time, evidence)
+        return None
+
+    def _diverged(
+        self, divergence: Divergence, started: float
+    ) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """The terminal step of a diverged episode: last observation, the penalty."""
+        self._episode_over = True
+        log.info(
+            "env %d: solver %r diverged at t=%g: %s",
+            self.env_index,
+            divergence.solver,
+            divergence.time,
+            divergence.evidence,
+        )
+        info = {
+            "time": self.time,
+            "time_window": self.time_window,
+            "env_index": self.env_index,
+            "diverged": divergence.as_info(),
+            "timing": Timing({"step_s": time.perf_counter() - started}),
+        }
+        return self._last_obs, self._divergence_penalty, True, False, info
+
     def _health_check(self, process: SolverProcess) -> str | None:
         ctx = self._solvers.get(process.name)
         if ctx is None:
@@ -753,6 +888,28 @@ class Adapter(gym.Env):
                 reader.close()
             except Exception:
                 pass
+
+
+class NonFiniteValueError(ValueError):
+    """A user method returned NaN or infinity: a learner must never see it."""
+
+
+def _refuse_non_finite(value: Any, method: str, env_index: int, step: int) -> None:
+    """Raise when ``value`` (an observation, a dict of them, or a reward) is not finite."""
+    items = value.items() if isinstance(value, Mapping) else [("", value)]
+    for key, part in items:
+        try:
+            array = np.asarray(part, dtype=float)
+        except (TypeError, ValueError):
+            continue  # not numeric (a Discrete space's int is fine; text is not ours)
+        if not np.all(np.isfinite(array)):
+            where = f"[{key!r}]" if key else ""
+            raise NonFiniteValueError(
+                f"env {env_index}: {method}() returned a non-finite value{where} (NaN or "
+                f"infinity) at step {step}: {array.tolist() if array.size <= 8 else array}; "
+                "it was not passed to the learner. Check the solver output it reads (a "
+                "diverging solver belongs in its plugin's gymprecice_detect_divergence)"
+            )
 
 
 def _fit_dimensions(geometry: InterfaceGeometry, dimensions: int) -> InterfaceGeometry:

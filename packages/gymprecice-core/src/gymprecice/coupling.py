@@ -37,6 +37,7 @@ from gymprecice.errors import (
     CouplingError,
     PreciceNotInstalledError,
     SolverCrashedError,
+    SolverDivergedError,
     SolverError,
     SolverTimeoutError,
 )
@@ -217,6 +218,7 @@ class CouplingSession:
         progress_timeout: float,
         kill_grace: float,
         health_check: Callable[[SolverProcess], str | None] | None = None,
+        watch: Callable[[SolverProcess], str | None] | None = None,
     ) -> None:
         self.worker = worker
         self.solvers = list(solvers)
@@ -224,6 +226,8 @@ class CouplingSession:
         self.progress_timeout = progress_timeout
         self.kill_grace = kill_grace
         self.health_check = health_check
+        #: asked about a running solver whose log grew: divergence evidence, or None
+        self.watch = watch
         self.closed = False
         self._killing = False
 
@@ -316,8 +320,10 @@ class CouplingSession:
                 )
             sizes = self._log_sizes()
             if sizes != log_sizes:
+                grown = [s for s, a, b in zip(self.solvers, sizes[1:], log_sizes[1:]) if a != b]
                 log_sizes = sizes
                 last_progress = now
+                self._watch(grown, op)
             if checking_health and self.health_check is not None:
                 for solver in self.solvers:
                     problem = self.health_check(solver)
@@ -370,6 +376,17 @@ class CouplingSession:
                 SolverCrashedError, solver, what + "; the data of this step is discarded", op
             )
 
+    def _watch(self, solvers: Sequence[SolverProcess], op: str) -> None:
+        """End the request when a running solver shows divergence (see ``watch``)."""
+        if self.watch is None:
+            return
+        for solver in solvers:
+            if solver.poll() is not None:
+                continue
+            evidence = self.watch(solver)
+            if evidence:
+                self._fail(SolverDivergedError, solver, f"diverged: {evidence}", op, evidence)
+
     def _log_sizes(self) -> list[int]:
         """Sizes of every log of the episode: growth in any of them counts as progress."""
         return [self.worker.log_size(), *(s.log_size() for s in self.solvers)]
@@ -400,15 +417,22 @@ class CouplingSession:
         )
 
     def _fail(
-        self, error: type[SolverError], solver: SolverProcess | None, what: str, op: str
+        self,
+        error: type[SolverError],
+        solver: SolverProcess | None,
+        what: str,
+        op: str,
+        evidence: str = "",
     ) -> None:
         name = solver.name if solver else "solver"
         tail = solver.log_tail() if solver else ""
         log = str(solver.log_path) if solver else None
         code = solver.poll() if solver else None
         self.kill()
+        extra = {"evidence": evidence} if error is SolverDivergedError else {}
         raise error(
             f"env {self.env_index}: solver {name!r} {what} (during '{op}')",
+            **extra,
             env_index=self.env_index,
             solver=name,
             returncode=code,

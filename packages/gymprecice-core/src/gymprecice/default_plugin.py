@@ -33,6 +33,12 @@
     ``{participant}``, ``{precice_config}`` (the env's own preCICE configuration). Only
     these exact tokens are replaced, so other braces (JSON arguments) are left alone.
 
+Both kinds take ``"divergence_patterns"``: regular expressions whose first matching log
+line (while the solver runs, or after it failed) means the solver diverged under the
+agent's actions, e.g. ``["Floating point exception", "Courant Number .* max: [0-9]{3,}"]``;
+see :func:`gymprecice.hookspecs.gymprecice_detect_divergence`. None by default: a generic
+program's failures are faults unless the case says otherwise.
+
 Both kinds export ``GYMPRECICE_ENV_INDEX``, ``GYMPRECICE_ENV_DIR``, ``GYMPRECICE_RUN_DIR``,
 ``GYMPRECICE_SOLVER``, ``GYMPRECICE_PARTICIPANT``, ``GYMPRECICE_PRECICE_CONFIG`` and, for
 reset, ``GYMPRECICE_SEED`` (drawn from the episode's seeded generator, so a reset script
@@ -47,7 +53,9 @@ This module is loaded on every ``import gymprecice``: it imports nothing heavy a
 from __future__ import annotations
 
 import difflib
+import functools
 import os
+import re
 import shlex
 import shutil
 import sys
@@ -55,6 +63,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from gymprecice.divergence import first_match
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.hookspecs import hookimpl
 from gymprecice.precice_install import core_install_steps
@@ -69,7 +78,7 @@ KINDS = {
 }
 #: default seconds a reset script / reset command may take
 DEFAULT_RESET_TIMEOUT = 600.0
-_SHARED_OPTIONS = ("prepare_timeout", "reset_timeout", "env", "log_name")
+_SHARED_OPTIONS = ("prepare_timeout", "reset_timeout", "env", "log_name", "divergence_patterns")
 #: the options each kind reads (see the module docstring). ``outputs`` is read by other
 #: plugins' output readers (``"openfoam"``: OpenFOAM-format function-object output;
 #: ``"dealii"``: a preCICE watch-point log the solver writes itself).
@@ -106,15 +115,44 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
         return None
     try:
         check_options(solver)
+        divergence_patterns(solver)
     except ConfigError as exc:
         return [str(exc)]
-    return []
+    return launch_problems(solver)
+
+
+def launch_problems(solver: SolverContext) -> list[str]:
+    """What preparing, resetting or launching would refuse, found without running anything.
+
+    The very checks of :func:`_script_argv` and :func:`_command_argv` (so ``gymprecice
+    check`` and ``reset()`` give the same messages), run on the pristine case: a missing
+    or non-executable script, a program in an argv that is not there or not executable,
+    and a script that an argv hands to an interpreter but that is not there.
+    """
+    problems = []
+    if solver.kind == SCRIPT:
+        roles = _present_script_roles(solver)
+        if "run_script" not in roles:
+            roles.append("run_script")
+        checks = [functools.partial(_script_argv, solver, role) for role in roles]
+    else:
+        checks = [
+            functools.partial(_command_argv, solver, key, required=key == "argv")
+            for key in ("prepare_argv", "reset_argv", "argv")
+        ]
+    for check in checks:
+        try:
+            check()
+        except (CaseError, ConfigError) as exc:
+            problems.append(str(exc))
+    return problems
 
 
 @hookimpl(trylast=True)
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     if solver.kind in KINDS:
         check_options(solver)
+        divergence_patterns(solver)
     if solver.kind == SCRIPT:
         # Check every script now, so a missing run script fails at the first reset rather
         # than after a long prerun.
@@ -180,6 +218,36 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
                     f"(log in {solver.run_dir}); fix the script or the PATH and reset"
                 )
     return None
+
+
+@hookimpl(trylast=True)
+def gymprecice_detect_divergence(
+    solver: SolverContext, log_text: str, returncode: int | None
+) -> str | None:
+    if solver.kind not in KINDS:
+        return None
+    return first_match(log_text, divergence_patterns(solver))
+
+
+def divergence_patterns(solver: SolverContext) -> list[re.Pattern[str]]:
+    """The solver's ``divergence_patterns``, compiled; a bad one is a :class:`ConfigError`."""
+    raw = solver.options.get("divergence_patterns") or []
+    key = f"physics_simulation_engine.solvers.{solver.name}.options.divergence_patterns"
+    if isinstance(raw, str) or not isinstance(raw, list):
+        raise ConfigError(
+            f"{_where(solver)}: {key} is {raw!r}; give a list of regular expressions, e.g. "
+            '["Floating point exception"]'
+        )
+    compiled = []
+    for pattern in raw:
+        try:
+            compiled.append(re.compile(pattern))
+        except (re.error, TypeError) as exc:
+            raise ConfigError(
+                f"{_where(solver)}: {key} holds {pattern!r}, not a valid regular expression "
+                f"({exc}); fix or remove it"
+            ) from None
+    return compiled
 
 
 @hookimpl(trylast=True)
@@ -291,6 +359,7 @@ def _command_argv(solver: SolverContext, key: str, *, required: bool = False) ->
         )
     argv = [_substitute(str(arg), solver) for arg in raw]
     _check_program(solver, argv[0], key)
+    _check_interpreted_script(solver, argv, key)
     return argv
 
 
@@ -327,6 +396,28 @@ def _check_program(solver: SolverContext, program: str, key: str) -> None:
             f"{solver.describe()}: options.{key} starts with {program!r}, which is not an "
             f"executable {'file' if os.sep in program else 'program on PATH'}; install it, "
             f"fix PATH, or fix options.{key} in {_where(solver)}"
+        )
+
+
+#: programs that take a script file as their first argument
+_INTERPRETERS = re.compile(r"^(python[0-9.]*|bash|sh|dash|zsh|ksh|perl|ruby|node|Rscript)$")
+
+
+def _check_interpreted_script(solver: SolverContext, argv: list[str], key: str) -> None:
+    """``["python", "solver.py"]`` with no ``solver.py``: say so now, not in the log."""
+    program = Path(argv[0])
+    if not (_INTERPRETERS.match(program.name) or argv[0] == sys.executable) or len(argv) < 2:
+        return
+    script = argv[1]
+    if script.startswith("-") or "{" in script:
+        return  # an option (python -m module, bash -c text) or an unfilled placeholder
+    path = Path(script) if os.path.isabs(script) else solver.run_dir / script
+    if not path.exists():
+        shown = script if os.path.isabs(script) else solver.source_dir / script
+        raise CaseError(
+            f"{shown}: options.{key} runs {program.name} on this script, but it does not "
+            f"exist; add it to {solver.source_dir} or fix options.{key} in {_where(solver)} "
+            f"({solver.describe()})"
         )
 
 

@@ -101,6 +101,20 @@ class SolverCrashedError(SolverError):
     """A solver process exited (usually with a non-zero status) before the episode ended."""
 
 
+class SolverDivergedError(SolverError):
+    """A solver's own output shows that it diverged: the episode's outcome, not a fault.
+
+    Raised while the solver still runs, when its plugin's
+    :func:`~gymprecice.hookspecs.gymprecice_detect_divergence` sees the divergence coming
+    (a Courant number past its limit); :class:`~gymprecice.core.Adapter` turns it into a
+    terminated step. ``evidence`` is the log line or quantity that showed it.
+    """
+
+    def __init__(self, message: str, *, evidence: str = "", **kwargs: object) -> None:
+        self.evidence = evidence or message
+        super().__init__(message, **kwargs)  # type: ignore[arg-type]
+
+
 class SolverTimeoutError(SolverError):
     """A solver made no progress within the configured timeout (hung, stopped, deadlocked)."""
 

@@ -124,6 +124,31 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
 
 
 @hookspec(firstresult=True)
+def gymprecice_detect_divergence(
+    solver: SolverContext, log_text: str, returncode: int | None
+) -> str | None:
+    """Say whether the solver diverged (the agent's doing) and what shows it, else ``None``.
+
+    Called in two situations; only read files, never change them:
+
+    * ``returncode is None``: the solver is running. Core calls this while it waits for
+      the solver and after every step, whenever the solver's log grew, with the log's
+      tail. Watch a quantity here to end the episode *before* the solver crashes (a
+      Courant number past a configured limit, a displacement out of all proportion).
+    * ``returncode`` is an int: the step failed and this solver has ended with that
+      status (negative: killed by that signal). Classify its exit from its log: a
+      floating-point exception or an iteration limit is divergence; anything else is
+      not yours to excuse.
+
+    Return the evidence, the log line or measured quantity that shows the divergence
+    (it goes to ``info["diverged"]["evidence"]``), or ``None``: not diverged, or not this
+    plugin's kind. Core ends the episode with ``terminated=True`` and the env's
+    ``divergence_penalty``; the vector pool does not count it as a failure. Exits by
+    SIGKILL, SIGSEGV or SIGBUS and hangs stay faults and are never asked about.
+    """
+
+
+@hookspec(firstresult=True)
 def gymprecice_interface_geometry(
     solver: SolverContext, interface: str, mesh: str
 ) -> InterfaceGeometry | None:

@@ -16,7 +16,8 @@ numbers every layer already measures:
   (the learner's forward passes, updates, logging);
 * ``reset_s``: one env reset (the Adapter's ``info["timing"]["reset_s"]``, or as measured
   by the worker); ``spawn_s``: starting an env worker (construction of the env);
-* failures, by env and kind.
+* failures, by env and kind, and divergences (solvers the agent drove past what they
+  integrate: episode outcomes, counted apart from failures).
 
 Each series keeps a total (mean over the whole run), a bounded window of recent samples
 (percentiles of :meth:`Telemetry.summary`), and the samples since the last
@@ -156,6 +157,9 @@ class Telemetry:
         self.episodes = 0
         self.failures: list[Any] = []
         self._recent_failures = 0
+        #: steps in which a solver diverged (an episode outcome, not a failure)
+        self.divergences = 0
+        self._recent_divergences = 0
         self.respawns = 0
 
     # -- recording -------------------------------------------------------------------------
@@ -178,6 +182,9 @@ class Telemetry:
         Called once per env and step in the learner's process, so it only appends.
         """
         self.steps += 1
+        if isinstance(info, Mapping) and info.get("diverged"):
+            self.divergences += 1
+            self._recent_divergences += 1
         # info["timing"] is the Adapter's Timing: a Mapping, not a dict
         timing = info.get("timing") if isinstance(info, Mapping) else None
         if isinstance(timing, Mapping):
@@ -225,8 +232,8 @@ class Telemetry:
     def drain(self) -> dict[str, float]:
         """Statistics of the samples since the previous drain, flat, for a logger.
 
-        Keys are ``<series>_mean``, ``<series>_p50``, ... plus ``failures`` (since the
-        last drain), ``failures_total`` and ``solver_fraction``/``learner_fraction`` (of
+        Keys are ``<series>_mean``, ``<series>_p50``, ... plus ``failures`` and
+        ``divergences`` (since the last drain), ``failures_total``, ``divergences_total`` and ``solver_fraction``/``learner_fraction`` (of
         the time accounted for in this period).
         """
         out: dict[str, float] = {}
@@ -241,7 +248,9 @@ class Telemetry:
             out.update(stats.as_dict(f"{name}_"))
         out["failures"] = float(self._recent_failures)
         out["failures_total"] = float(len(self.failures))
-        self._recent_failures = 0
+        out["divergences"] = float(self._recent_divergences)
+        out["divergences_total"] = float(self.divergences)
+        self._recent_failures = self._recent_divergences = 0
         out.update(_fractions(totals, self.num_envs))
         return out
 
@@ -257,6 +266,7 @@ class Telemetry:
         lines = [
             f"gymprecice vector env: {self.num_envs} envs, {self.steps} env steps, "
             f"{self.episodes} episodes started, {len(self.failures)} failures, "
+            f"{self.divergences} divergences, "
             f"{self.respawns} worker restarts"
         ]
         width = max(len(label) for label in SERIES.values()) + 2  # labels never push columns

@@ -9,7 +9,8 @@ solver directory. Options (``physics_simulation_engine.solvers.<name>.options``)
      "np": 1,                          # > 1: start through "mpirun -np N"
      "mpirun": "mpirun",               # the MPI launcher used when np > 1
      "threads": null,                  # DEAL_II_NUM_THREADS for the solver
-     "output_interval": null}          # override 'Output interval' (time steps per VTU)
+     "output_interval": null,          # override 'Output interval' (time steps per VTU)
+     "max_displacement": null}         # diverged past this displacement (see .divergence)
 
 The adapter's solvers are serial finite-element codes (the nonlinear one uses threads),
 so ``threads`` is usually what speeds them up; ``np`` exists for adapter builds that
@@ -47,12 +48,21 @@ from gymprecice.hookspecs import InstallStep, hookimpl
 from gymprecice.solver import DoctorCheck, LaunchSpec, SolverContext
 from gymprecice.stack import stack_which
 from gymprecice.watchpoints import WatchPointLog, watch_point_file_name
+from gymprecice_dealii import divergence
 from gymprecice_dealii.prm import ElasticityParameters, PrmError
 
 KIND = "dealii"
 DEFAULT_PROGRAM = "elasticity"
 DEFAULT_PARAMETERS = "parameters.prm"
-OPTIONS = ("parameters", "program", "np", "mpirun", "threads", "output_interval")
+OPTIONS = (
+    "parameters",
+    "program",
+    "np",
+    "mpirun",
+    "threads",
+    "output_interval",
+    divergence.DISPLACEMENT_OPTION,
+)
 OUTPUTS = ("watchpoint",)
 BUILD_ADVICE = (
     "build the deal.II-preCICE adapter with `gymprecice install dealii-adapter` (needs "
@@ -100,6 +110,7 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
     if solver.kind != KIND:
         return None
     try:
+        _check_options(solver)
         check_against_precice(solver, _read_parameters(solver))
     except (CaseError, ConfigError) as exc:
         return [str(exc)]
@@ -179,6 +190,15 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
         if needle in log_text:
             return f"{solver.describe()}: {advice.format(prm=prm)}"
     return None
+
+
+@hookimpl
+def gymprecice_detect_divergence(
+    solver: SolverContext, log_text: str, returncode: int | None
+) -> str | None:
+    if solver.kind != KIND:
+        return None
+    return divergence.detect(solver, log_text, returncode)
 
 
 @hookimpl
@@ -307,6 +327,7 @@ def _check_options(solver: SolverContext) -> None:
             f"{_where(solver)}: {solver.describe()}: unknown option(s) {unknown}; the deal.II "
             f"plugin knows {list(OPTIONS)}"
         )
+    divergence.displacement_limit(solver)
 
 
 def _positive_int(solver: SolverContext, key: str) -> int:

@@ -37,7 +37,7 @@ import numpy as np
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.solver import LaunchSpec, SolverContext
 from gymprecice.stack import solver_environment
-from gymprecice_openfoam import control, foamio, prerun_cache
+from gymprecice_openfoam import checks, control, foamio, prerun_cache
 from gymprecice_openfoam.installation import (
     OpenFOAMInstallation,
     find_openfoam,
@@ -608,6 +608,9 @@ def prepare_case(solver: SolverContext) -> PreparedCase:
     snap_values, explicit_split = _snapshot_option(options)
     _clean_outputs(run_dir, keep=set())
     ensure_mesh(run_dir, inst, options)
+    missing = checks.patch_problems(run_dir)
+    if missing:
+        raise CaseError("\n".join(missing))
     np_ = decide_np(run_dir, options)
     if np_ > 1:
         decompose(run_dir, inst, np_)

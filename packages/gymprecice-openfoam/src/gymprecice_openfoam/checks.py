@@ -32,7 +32,7 @@ from pathlib import Path
 
 from gymprecice.errors import CaseError
 from gymprecice.solver import DoctorCheck, SolverContext
-from gymprecice_openfoam import control
+from gymprecice_openfoam import control, foamio
 from gymprecice_openfoam.installation import ADAPTER_LIBRARY, find_openfoam
 from gymprecice_openfoam.mesh import PreciceDict, processor_dirs, read_boundary, read_precice_dict
 
@@ -212,18 +212,52 @@ def _precice_dict_problems(solver: SolverContext, pdict: PreciceDict) -> list[st
     return problems
 
 
-def _patch_problems(case_dir: Path, pdict: PreciceDict) -> list[str]:
-    """Interface patches the case's mesh lacks (only when the mesh is already there)."""
+def patch_problems(case_dir: Path) -> list[str]:
+    """Interface patches of ``system/preciceDict`` that the case's mesh lacks.
+
+    The one check behind both ``gymprecice check`` (on the pristine case, where the mesh
+    may exist only as a ``blockMeshDict``) and the preparation of an env's case (right
+    after its mesh is built), so both report the same problem the same way.
+    """
+    if not (case_dir / "system" / "preciceDict").is_file():
+        return []
+    try:
+        pdict = read_precice_dict(case_dir)
+    except CaseError as exc:
+        return [str(exc)]
+    return _patch_problems(case_dir, pdict)
+
+
+def _mesh_patch_names(case_dir: Path) -> tuple[Path, list[str]] | None:
+    """The patches of the built mesh, or else of the blockMeshDict that will build it."""
     boundary = case_dir / "constant" / "polyMesh" / "boundary"
     if not boundary.is_file():
         processors = processor_dirs(case_dir)
         boundary = processors[0] / "constant" / "polyMesh" / "boundary" if processors else boundary
-    if not boundary.is_file():
-        return []  # the mesh is generated when the case is prepared
+    if boundary.is_file():
+        return boundary, [patch.name for patch in read_boundary(boundary.parent)]
+    for recipe in (
+        case_dir / "system" / "blockMeshDict",
+        case_dir / "constant" / "polyMesh" / "blockMeshDict",
+    ):
+        if recipe.is_file():
+            entries = foamio.load(recipe).get("boundary")
+            if not isinstance(entries, list):
+                return None  # an old-style or #include'd boundary: blockMesh will tell
+            names = [e[0] for e in entries if isinstance(e, (tuple, list)) and e]
+            return recipe, [str(name) for name in names]
+    return None  # a gmsh recipe: the mesh is known once it is converted
+
+
+def _patch_problems(case_dir: Path, pdict: PreciceDict) -> list[str]:
+    """Interface patches the case's mesh (or its blockMeshDict) lacks."""
     try:
-        names = [patch.name for patch in read_boundary(boundary.parent)]
-    except CaseError as exc:
+        found = _mesh_patch_names(case_dir)
+    except (CaseError, ValueError) as exc:
         return [str(exc)]
+    if found is None:
+        return []
+    boundary, names = found
     problems = []
     for interface in pdict.interfaces:
         for patch in interface.patches:

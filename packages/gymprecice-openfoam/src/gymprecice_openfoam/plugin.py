@@ -13,6 +13,10 @@ Solver options (``physics_simulation_engine.solvers.<name>.options``):
                      from; ``eval_fraction`` (default 0.25) sets the fixed split
 ``end_time``         controlDict ``endTime`` to use (default: long enough for the coupling)
 ``geo``, ``msh``       the gmsh geometry or mesh to convert when the case ships no mesh
+``max_courant``      end the episode as diverged once the log's Courant number max passes
+                     this (a positive number; default: no guard). A floating-point
+                     exception or ``Maximum number of iterations exceeded`` is divergence
+                     anyway (see :mod:`.divergence`)
 ``solver_args``, ``mpirun_args``, ``prerun_args``, ``prerun_timeout``, ``openfoam_bashrc``
 
 Any other option key is refused when the case is prepared, naming the closest known one.
@@ -40,7 +44,7 @@ from gymprecice.solver import (
     OutputReader,
     SolverContext,
 )
-from gymprecice_openfoam import case, checks, outputs
+from gymprecice_openfoam import case, checks, divergence, outputs
 from gymprecice_openfoam import mesh as meshes  # the geometry hook's argument is named mesh
 
 KIND = "openfoam"
@@ -72,6 +76,7 @@ OPTIONS = (
     "prerun_args",
     "prerun_timeout",
     "openfoam_bashrc",
+    divergence.COURANT_OPTION,
 )
 
 
@@ -100,6 +105,7 @@ def _check_options(solver: SolverContext) -> None:
     """A misspelt option must not be ignored (``prerun_end_tme`` would skip the pre-run)."""
     unknown = sorted(set(solver.options) - set(OPTIONS))
     if not unknown:
+        divergence.courant_limit(solver)
         return
     hints = []
     for key in unknown:
@@ -141,6 +147,15 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
     if not _mine(solver):
         return None
     return checks.check_solver(solver, log_text, _log_name(solver))
+
+
+@hookimpl
+def gymprecice_detect_divergence(
+    solver: SolverContext, log_text: str, returncode: int | None
+) -> str | None:
+    if not _mine(solver):
+        return None
+    return divergence.detect(solver, log_text, returncode)
 
 
 def _parallel(solver: SolverContext) -> bool | None:

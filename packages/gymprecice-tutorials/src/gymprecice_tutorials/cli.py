@@ -35,6 +35,7 @@ from typing import Any
 
 from gymprecice_tutorials.environments import ENVIRONMENTS
 from gymprecice_tutorials.hyperparams import ALGORITHMS
+from gymprecice_tutorials.wrapping import parse_wrap_argument
 
 __all__ = ["add_commands"]
 
@@ -116,6 +117,17 @@ def _env_options(p: argparse.ArgumentParser, *, rollout: bool) -> None:
         + ")",
     )
     p.set_defaults(rollout=rollout)
+    p.add_argument(
+        "--wrap",
+        action="append",
+        type=parse_wrap_argument,
+        default=[],
+        metavar="NAME:KEY=VALUE,...",
+        help="a robustness wrapper between the policy and the env (repeatable): "
+        "sensor_noise:std=0.05[,mode=absolute], action_noise:std=0.1, delay:steps=2, "
+        "dropout:p=0.1[,fill=0]; train also reads them from the hyperparameter file's "
+        "'robustness' key",
+    )
     p.add_argument(
         "--env-kwargs",
         type=_json_object,

@@ -87,11 +87,15 @@ def make_env(
     *,
     monitor_file: str | None = None,
     rescale: bool = True,
+    robustness: Mapping[str, Any] | None = None,
 ) -> gym.Env:
     """One environment as training and evaluation see it (module level: picklable).
 
     ``rescale`` maps a bounded ``Box`` action space to ``[-1, 1]``; ``monitor_file`` records
     episode returns, lengths and :data:`EPISODE_KEYWORDS` with SB3's ``Monitor``.
+    ``robustness`` (:mod:`gymprecice.robustness`: sensor and action noise, delay,
+    dropout) sits between the policy and the rescaled env, so noise is in the policy's
+    units; the vector env's ``seed`` seeds it.
     """
     import gymprecice  # noqa: F401  (registers the gymprecice/... ids in this process)
 
@@ -105,6 +109,10 @@ def make_env(
     ):
         unit = np.ones(space.shape, dtype=space.dtype)
         env = gym.wrappers.RescaleAction(env, -unit, unit)
+    if robustness:
+        from gymprecice.robustness import wrap
+
+        env = wrap(env, robustness)
     if monitor_file is not None:
         env = _monitor(env, monitor_file)
     return env

@@ -58,6 +58,7 @@ from gymprecice_tutorials.shipped_policies import (
     shipped_policies,
 )
 from gymprecice_tutorials.train import build_env_kwargs, default_out
+from gymprecice_tutorials.wrapping import WrapError, wrap_spec
 
 __all__ = [
     "change_against",
@@ -322,8 +323,22 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
             return status
     # The policy acts in [-1, 1] (training rescales); the fixed controllers act in the
     # env's own units, so that "zero" means jets closed.
-    env = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=command == "evaluate")
+    # the robustness wrappers' noise is seeded by each episode's reset seed
+    try:
+        robustness = wrap_spec(getattr(args, "wrap", []))
+    except WrapError as exc:
+        print(f"gymprecice {command}: {exc}", file=sys.stderr)
+        return 2
+    env = make_env_checked(
+        env_info.name,
+        env_info.env_id,
+        0,
+        kwargs,
+        rescale=command == "evaluate",
+        robustness=robustness,
+    )
     settings: dict[str, Any] = {
+        "robustness": robustness,
         "env_id": env_info.env_id,
         "env_kwargs": kwargs,
         "episodes": args.episodes,

@@ -76,7 +76,7 @@ FLAGS = {
 }
 
 #: Keys of a hyperparameter file that are not constructor arguments of the algorithm.
-_OWN_KEYS = {"net", "normalize"}
+_OWN_KEYS = {"net", "normalize", "robustness"}
 #: RL Zoo keys accepted in a file and ignored (the command line or the env decides them).
 _IGNORED_KEYS = {"policy", "n_timesteps", "n_envs", "env_wrapper", "normalize_kwargs"}
 

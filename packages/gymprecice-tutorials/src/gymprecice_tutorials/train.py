@@ -53,6 +53,7 @@ from gymprecice_tutorials.requirements import (
     require_solvers,
 )
 from gymprecice_tutorials.training_log import merge_progress, segment_logger
+from gymprecice_tutorials.wrapping import WrapError, wrap_spec
 
 __all__ = [
     "build_env_kwargs",
@@ -221,7 +222,12 @@ def train(
     monitor.mkdir(exist_ok=True)
     fns = [
         functools.partial(
-            make_env, env.env_id, i, dict(env_kwargs), monitor_file=str(monitor / f"env_{i}")
+            make_env,
+            env.env_id,
+            i,
+            dict(env_kwargs),
+            monitor_file=str(monitor / f"env_{i}"),
+            robustness=params.get("robustness"),
         )
         for i in range(n_envs)
     ]
@@ -482,6 +488,15 @@ def train_command(args: argparse.Namespace) -> int:
         if status:
             return status
     params = _params(args, env, out)
+    try:
+        robustness = wrap_spec(params.get("robustness"), getattr(args, "wrap", []))
+    except WrapError as exc:
+        print(f"gymprecice train: {exc} (in --wrap or the hyperparameter file)", file=sys.stderr)
+        return 2
+    if robustness:
+        params["robustness"] = robustness
+    else:
+        params.pop("robustness", None)
     resume = None if args.fresh else newest_checkpoint(out / "checkpoints")
     if resume is not None:
         _refuse_changed_resume(out, params)

@@ -36,6 +36,10 @@ Faults (``inject(faults_dir, index, phase, fault, **params)``):
     writes on a full disk fail with ENOSPC. A real tiny filesystem would need privileges
     (mounting a tmpfs) that test machines rarely grant, and a read-only directory does not
     stop root; the file-size limit is enforced by the kernel for any user.
+``diverge`` (run)
+    the solver diverges at window ``window``: its log shows a blown-up Courant number and
+    a ``Floating point exception`` (the case's ``divergence_patterns``), and it exits with
+    status 136. An episode outcome, not a fault: the step terminates with the penalty.
 ``bad-case`` (reset)
     the reset step finds patch ``patch`` (default ``jet1``) missing from the env's copy of
     ``mesh/boundary`` and fails like a solver utility does.
@@ -200,6 +204,7 @@ def write_case(
                         "argv": [*launcher, "run", "--", *partner],
                         "reset_argv": [*launcher, "reset"],
                         "reset_timeout": 30,
+                        "divergence_patterns": ["Floating point exception"],
                         # the partner needs no plugin: skip loading them at every start
                         "env": {
                             FAULTS_VARIABLE: str(Path(faults_dir).resolve()),

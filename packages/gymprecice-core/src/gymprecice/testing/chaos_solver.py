@@ -74,6 +74,8 @@ def _launch(partner_args: Sequence[str]) -> int:
             print("[chaos] fault: SIGKILL before connecting", flush=True)
             os.kill(os.getpid(), signal.SIGKILL)
         argv += ["--crash-at-window", str(window)]
+    elif kind == "diverge":
+        argv += ["--diverge-at-window", str(window)]
     elif kind == "stop":
         print("[chaos] fault: SIGSTOP before connecting", flush=True)
         os.kill(os.getpid(), signal.SIGSTOP)

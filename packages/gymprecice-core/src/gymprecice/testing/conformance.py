@@ -241,6 +241,7 @@ class SolverPluginConformance:
         sample = {
             "solver": solver,
             "log_text": "",
+            "returncode": None,
             "interface": "conformance-interface",
             "mesh": "Conformance-Mesh",
             "name": "conformance-output",
@@ -348,6 +349,33 @@ class SolverPluginConformance:
         for log_text in ("", "some ordinary solver output\n"):
             answer = manager.hook.gymprecice_check_solver(solver=solver, log_text=log_text)
             assert answer is None or (isinstance(answer, str) and answer.strip()), answer
+
+    def test_detect_divergence_reads_only_and_spares_a_healthy_solver(
+        self, manager: GymPrecicePluginManager, solver: SolverContext
+    ) -> None:
+        """A healthy run is never called diverged, and looking never changes a file.
+
+        A false divergence ends every episode with the penalty: the agent would learn
+        from noise. Core calls the hook while the solver runs (``returncode=None``) and
+        after a failure; either way the run directory must stay as it was.
+        """
+        if not self._implemented(manager, "gymprecice_detect_divergence"):
+            pytest.skip("gymprecice_detect_divergence is not implemented")
+        assert manager.hook.gymprecice_prepare_case(solver=solver) is True
+        assert manager.hook.gymprecice_reset_case(solver=solver) is True
+        before = tree_snapshot(solver.env_dir)
+        for returncode in (None, 0, 1):
+            for log_text in ("", "some ordinary solver output\n"):
+                answer = manager.hook.gymprecice_detect_divergence(
+                    solver=solver, log_text=log_text, returncode=returncode
+                )
+                assert answer is None, (
+                    f"gymprecice_detect_divergence called a freshly reset solver diverged "
+                    f"(returncode {returncode}, log {log_text!r}): {answer!r}"
+                )
+        assert not _diff(before, tree_snapshot(solver.env_dir)), (
+            "gymprecice_detect_divergence changed files; it may only read them"
+        )
 
     def test_doctor_checks_are_doctor_checks(self, manager: GymPrecicePluginManager) -> None:
         if not self._implemented(manager, "gymprecice_doctor_checks"):

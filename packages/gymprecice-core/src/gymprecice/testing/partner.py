@@ -11,7 +11,7 @@ Usage::
     python -m gymprecice.testing.partner --config precice-config.xml --participant Fluid \\
         [--flow gymprecice.testing.flows:CylinderFlow] [--option KEY=VALUE ...] \\
         [--library gymprecice.testing.fake_precice|precice] [--dt SECONDS] \\
-        [--crash-at-window N] [--hang-at-window N] [--exit-code CODE] \\
+        [--crash-at-window N] [--hang-at-window N] [--diverge-at-window N] [--exit-code CODE] \\
         [--step-sleep SECONDS] [--write-outputs DIR [--write-every-step]]
 
 One line per completed time window goes to stdout (``[Fluid] window 3 t=0.03 Cd=...``),
@@ -21,6 +21,9 @@ before ``initialize()``, ``N >= 1`` right after the ``N``-th window completed):
 * ``--crash-at-window N``: die by ``SIGKILL`` (no message, like a segfaulting solver); with
   ``--exit-code C`` instead print ``FATAL ERROR`` to stderr and exit with status ``C``.
 * ``--hang-at-window N``: print a line, then sleep forever (a deadlocked solver).
+* ``--diverge-at-window N``: diverge as a CFD solver does: print a Courant number that
+  has blown up and OpenFOAM's ``Floating point exception`` line, then exit with status
+  136 (128 + SIGFPE, what a shell reports for a solver killed by its FPE trap).
 * ``--exit-code C`` alone: finish the run normally, then report an error and exit with ``C``.
 * ``--step-sleep S``: sleep ``S`` seconds per time step (emulates a CFD step's cost).
 
@@ -119,6 +122,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--dt", type=float, default=None, help="solver time step (subcycling)")
     parser.add_argument("--crash-at-window", type=int, default=None, metavar="N")
     parser.add_argument("--hang-at-window", type=int, default=None, metavar="N")
+    parser.add_argument("--diverge-at-window", type=int, default=None, metavar="N")
     parser.add_argument("--exit-code", type=int, default=None, metavar="CODE")
     parser.add_argument("--step-sleep", type=float, default=0.0, metavar="SECONDS")
     parser.add_argument("--write-outputs", default=None, metavar="DIR")
@@ -146,10 +150,16 @@ class _Faults:
     def __init__(self, args: argparse.Namespace, name: str) -> None:
         self.crash_at = args.crash_at_window
         self.hang_at = args.hang_at_window
+        self.diverge_at = args.diverge_at_window
         self.exit_code = args.exit_code
         self.name = name
 
     def check(self, window: int) -> None:
+        if self.diverge_at is not None and window == self.diverge_at:
+            print(f"Courant Number mean: 3.1e+12 max: 8.7e+15 (window {window})", flush=True)
+            sys.stderr.write(f"[{self.name}] Floating point exception (window {window})\n")
+            sys.stderr.flush()
+            os._exit(136)
         if self.hang_at is not None and window == self.hang_at:
             print(f"[{self.name}] hanging at window {window}", flush=True)
             while True:

@@ -116,6 +116,7 @@ def gymprecice_config(spec: CaseSpec) -> dict[str, object]:
                     "options": {
                         "prerun_end_time": spec.prerun_end_time,
                         **({"snapshots": list(spec.snapshots)} if spec.snapshots else {}),
+                        **({"max_courant": spec.max_courant} if spec.max_courant else {}),
                     },
                 }
             }

@@ -134,6 +134,11 @@ class CaseSpec:
     #: the first, ``gymprecice evaluate`` / ``baseline`` from the second. Empty: every
     #: episode starts from ``prerun_end_time``.
     snapshots: tuple[float, ...] = ()
+    #: the OpenFOAM plugin's divergence guard: an episode whose Courant number passes this
+    #: ends as diverged (terminated, with the env's penalty) before the flow turns to
+    #: infinities. The cylinders run far below 1; an action that blows the flow up
+    #: drives it past 1e30 within a few steps. None: no guard
+    max_courant: float | None = 20.0
     n_procs: int = 2
     #: write fields every this many seconds of simulated time (0: only at endTime)
     write_interval: float = 0.0
