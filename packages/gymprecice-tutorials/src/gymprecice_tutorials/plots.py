@@ -178,11 +178,14 @@ def _run_env(run: Path) -> Any:
     """The tutorial environment a run was made with (from its manifest), if known."""
     from gymprecice_tutorials.environments import find_environment
 
-    try:
-        manifest = json.loads((run / "manifest.json").read_text())
-        return find_environment(manifest["settings"]["env_id"])
-    except (OSError, ValueError, KeyError):
-        return None
+    # a controller's directory inside a `gymprecice sweep` output has the sweep's manifest
+    for directory in (run, run.parent):
+        try:
+            manifest = json.loads((directory / "manifest.json").read_text())
+            return find_environment(manifest["settings"]["env_id"])
+        except (OSError, ValueError, KeyError):
+            continue
+    return None
 
 
 def _action_scheme(run: Path) -> tuple[str, int]:
