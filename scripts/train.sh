@@ -3,6 +3,7 @@
 #
 #   bash scripts/train.sh [extra `gymprecice train` options]     # the training case, ~2 h on 2 cores
 #   bash scripts/train.sh --paper [extra options]                 # the paper's full-fidelity run
+#   bash scripts/train.sh --flap [extra options]                  # the flap's FSI, ~1 h on 2 cores
 #
 # Default: JetCylinderFast-v0 (the jet cylinder's training case: coarse mesh, episodes from
 # a library of start snapshots, Rabault's reward and jet bound) with 2 s episodes, two
@@ -17,6 +18,13 @@
 # environment, 2 s episodes, 1,000 episodes on 24 environments = 48 cores); about 38 hours
 # with one environment on 2 cores (2 min 16 s per episode, docs/training.md).
 #
+# --flap: PerpendicularFlapFast-v0, the three-participant FSI (OpenFOAM fluid, deal.II
+# solid, the controller): PPO damps the flap's swing after a gust, 20,000 actions (about
+# 670 episodes), the flap's entry of scripts/ppo-fast.yml. Then:
+#
+#   .venv/bin/gymprecice evaluate perpendicular-flap-fast --episodes 3   # the 3 held-out gusts
+#   .venv/bin/gymprecice compare <sweep runs> <the evaluate run>      # docs/training.md
+#
 # Sets up the machine like the tests do, then checks it with `gymprecice doctor`: training
 # couples to real OpenFOAM through preCICE, so without preCICE (and the OpenFOAM-preCICE
 # adapter) it stops at once and says what to install. Ctrl-C saves; the same command resumes.
@@ -27,6 +35,11 @@ if [[ "${1:-}" == "--paper" ]]; then
     shift
     exec .venv/bin/gymprecice train jet-cylinder --require-solvers --n-envs 24 \
         --timesteps 80000 "$@"
+fi
+if [[ "${1:-}" == "--flap" ]]; then
+    shift
+    exec .venv/bin/gymprecice train perpendicular-flap-fast --require-solvers --n-envs 2 \
+        --normalize --hyperparams scripts/ppo-fast.yml --timesteps 20000 "$@"
 fi
 exec .venv/bin/gymprecice train jet-cylinder-fast --require-solvers --n-envs 2 --normalize \
     --episode-time 2 --hyperparams scripts/ppo-fast.yml --timesteps 48000 "$@"

@@ -194,6 +194,75 @@ def test_killing_one_of_three_participants_leaves_nothing_of_the_other_behind(
     assert kill_recorded_groups(env.env_dir) == []
 
 
+@pytest.mark.dealii
+@pytest.mark.timeout(600)
+@pytest.mark.skipif(stack_which("elasticity") is None, reason="needs the deal.II adapter")
+def test_the_flap_tip_read_through_precice_is_the_watch_points_state_of_the_same_window(
+    tmp_path: Path,
+) -> None:
+    """PerpendicularFlapFast-v0 with ``observe="precice"``: the controller reads the tip's
+    displacement through preCICE (a tip mesh, two more explicit schemes). It is the
+    converged state of the step's last window, the same one the watch point logs: no lag,
+    no stale iterate, and the flap has moved."""
+    from gymprecice_tutorials.perpendicular_flap.fast import PerpendicularFlapFastEnv
+
+    env = PerpendicularFlapFastEnv(
+        run_root=tmp_path, observe="precice", settle_time=0.3, episode_time=0.5
+    )
+    try:
+        obs, _ = env.reset(seed=0, options={"split": "eval"})
+        moved = []
+        for _ in range(5):
+            obs, *_ = env.step(np.array([2.0], np.float32))
+            row = env._tip.data[-1:]
+            assert float(row[0, 0]) == pytest.approx(env.time)
+            watched = env._tip.field("Displacement", row)[0]
+            np.testing.assert_allclose(obs[:2], watched, rtol=0.02, atol=1e-5)
+            assert np.isfinite(obs).all() and np.linalg.norm(obs[4:6]) > 0
+            moved.append(abs(float(obs[0])))
+        assert max(moved) > 1e-3
+    finally:
+        env.close()
+    assert kill_recorded_groups(env.env_dir) == []
+
+
+@pytest.mark.dealii
+@pytest.mark.timeout(600)
+@pytest.mark.skipif(stack_which("elasticity") is None, reason="needs the deal.II adapter")
+def test_a_flap_driven_to_diverge_reports_participant_time_and_log_line_and_goes_on(
+    tmp_path: Path,
+) -> None:
+    """PerpendicularFlapFast-v0 with ten times its inflow: pimpleFoam's floating-point trap
+    ends the episode as an outcome (which participant, when, the log line), at once
+    rather than after the watch point's timeout, and the next episode starts clean."""
+    import time
+
+    from gymprecice_tutorials.perpendicular_flap.fast import PerpendicularFlapFastEnv
+
+    env = PerpendicularFlapFastEnv(
+        run_root=tmp_path, inlet_max_velocity=100.0, settle_time=0.2, episode_time=2.0
+    )
+    try:
+        for seed in (0, 1):
+            env.reset(seed=seed, options={"split": "eval"})
+            outcome = None
+            for _ in range(20):
+                started = time.monotonic()
+                _, reward, terminated, truncated, info = env.step(np.array([1.0], np.float32))
+                if terminated or truncated:
+                    outcome = (reward, terminated, info, time.monotonic() - started)
+                    break
+            assert outcome is not None and outcome[1], "the flow did not diverge"
+            reward, _, info, took = outcome
+            assert reward == env.divergence_penalty
+            assert info["diverged"]["solver"] == "fluid"
+            assert "sigFpe" in info["diverged"]["evidence"] and info["diverged"]["time"] > 0.2
+            assert took < env.watch_timeout / 4  # not the watch point's timeout
+            assert kill_recorded_groups(env.env_dir) == []
+    finally:
+        env.close()
+
+
 @pytest.mark.timeout(600)
 def test_a_jet_far_beyond_its_bound_diverges_as_an_outcome_and_the_next_episode_runs(
     tmp_path: Path,

@@ -288,3 +288,37 @@ def test_waiting_for_solver_output_is_timed_as_solver_time() -> None:
     before = clock[0]
     reader.read_new()
     assert clock[0] == before  # only waiting counts
+
+
+def test_a_solver_that_dies_while_its_output_is_awaited_ends_the_wait_at_once() -> None:
+    """A watch-point wait looks at the solvers between slices: a dead solver's error comes
+    within a slice, not after the reader's whole timeout; with every solver alive, the
+    reader's own timeout error comes at its timeout."""
+    import time as _time
+
+    from gymprecice.core import OUTPUT_WAIT_SLICE_S, _TimedReader
+    from gymprecice.errors import SolverCrashedError
+
+    class NeverReady:
+        def wait_until(self, t: float, timeout: float) -> str:
+            _time.sleep(timeout)
+            raise TimeoutError(f"no row for time {t} within {timeout} s")
+
+    looks = []
+
+    def dies_on_second_look() -> None:
+        looks.append(_time.monotonic())
+        if len(looks) == 2:
+            raise SolverCrashedError("env 0: solver 'solid' was killed by SIGKILL")
+
+    started = _time.monotonic()
+    reader = _TimedReader(NeverReady(), [0.0], dies_on_second_look)
+    with pytest.raises(SolverCrashedError, match="'solid' was killed"):
+        reader.wait_until(1.0, timeout=120.0)
+    assert _time.monotonic() - started < 4 * OUTPUT_WAIT_SLICE_S
+
+    reader = _TimedReader(NeverReady(), [0.0], lambda: None)
+    started = _time.monotonic()
+    with pytest.raises(TimeoutError, match=r"no row for time 1\.0"):
+        reader.wait_until(1.0, timeout=1.2)
+    assert 1.1 < _time.monotonic() - started < 2.0

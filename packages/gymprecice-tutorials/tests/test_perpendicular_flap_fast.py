@@ -57,6 +57,31 @@ def test_the_training_case_is_the_packaged_case_with_its_edits(tmp_path: Path) -
     assert write_case_files("flap-fast", fast_case_files(5.0), tmp_path) != case
 
 
+def test_the_precice_route_gives_the_controller_a_tip_mesh_fed_by_solid_and_fluid(
+    tmp_path: Path,
+) -> None:
+    case = write_case_files("flap-fast-precice", fast_case_files(4.0, "precice"), tmp_path)
+    precice = load_precice_config(case / "precice-config.xml")
+    assert len(precice.coupling_schemes) == 3
+    assert {s.max_time for s in precice.coupling_schemes} == {4.0}
+    controller = precice.participant("Controller")
+    assert ("Displacement", "Controller-Mesh-tip") in controller.read_data
+    assert ("Force", "Controller-Mesh-force") in controller.read_data
+    config = load_config(case / "gymprecice-config.json")
+    assert config.interfaces["tip"].mesh == "Controller-Mesh-tip"
+    assert config.interfaces["tip"].read == ("Displacement",)
+    assert config.interfaces["force"].mesh == "Controller-Mesh-force"
+    assert config.interfaces["force"].read == ("Force",)
+    assert config.interfaces["inlet"].write == ("Velocity",)
+
+
+def test_the_precice_route_needs_the_packaged_case_on_the_real_solvers(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match=r"observe='precice'.*real solvers"):
+        PerpendicularFlapFastEnv(double=True, observe="precice", run_root=tmp_path)
+    with pytest.raises(ValueError, match="observe must be"):
+        PerpendicularFlapFastEnv(observe="file", run_root=tmp_path)
+
+
 def test_an_edit_that_no_longer_matches_the_packaged_case_fails_naming_the_file(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

@@ -29,7 +29,7 @@ import signal
 import threading
 import time
 import weakref
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -68,6 +68,8 @@ from gymprecice.solver import InterfaceGeometry, OutputReader, SolverContext
 __all__ = ["Adapter", "DataDict", "DataRef", "Timing"]
 
 LIBRARY_ENV_VAR = "GYMPRECICE_PRECICE_LIBRARY"
+#: seconds between two looks at the solvers while an env waits for a solver's output file
+OUTPUT_WAIT_SLICE_S = 0.5
 
 log = logging.getLogger(__name__)
 
@@ -180,27 +182,45 @@ def _clean_up_on_termination_signals() -> None:
 
 
 class _TimedReader:
-    """A solver output reader whose ``wait_until`` calls are timed.
+    """A solver output reader whose ``wait_until`` calls are timed and watched.
 
     Waiting for a solver's output files is waiting for the solver, as much as waiting in
     preCICE is; timing it lets ``info["timing"]`` count it as such instead of as env code
     (an env that waits for a watch point would otherwise look 98 % busy in Python).
-    Everything else goes straight to the plugin's reader.
+    It is also watched like a wait in preCICE: the wait runs in slices of
+    :data:`OUTPUT_WAIT_SLICE_S`, and between two slices ``alive()`` raises if a solver has
+    died, so a crashed or diverged solver ends the step at once instead of after the
+    reader's whole timeout. Everything else goes straight to the plugin's reader.
     """
 
-    def __init__(self, reader: OutputReader, clock: list[float]) -> None:
+    def __init__(
+        self, reader: OutputReader, clock: list[float], alive: Callable[[], None] | None = None
+    ) -> None:
         self._reader = reader
         self._clock = clock
+        self._alive = alive
 
-    def wait_until(self, *args: Any, **kwargs: Any) -> Any:
+    def wait_until(self, time_: float, timeout: float, *args: Any, **kwargs: Any) -> Any:
         started = time.perf_counter()
+        wait = self._reader.wait_until  # type: ignore[attr-defined]
         try:
-            return self._reader.wait_until(*args, **kwargs)  # type: ignore[attr-defined]
+            if self._alive is None:
+                return wait(time_, timeout, *args, **kwargs)
+            deadline = time.monotonic() + max(0.0, timeout)
+            while True:
+                left = deadline - time.monotonic()
+                try:
+                    return wait(time_, min(left, OUTPUT_WAIT_SLICE_S), *args, **kwargs)
+                except TimeoutError as exc:
+                    if left <= OUTPUT_WAIT_SLICE_S:  # the reader's own error, its last slice
+                        exc.add_note(f"(waited {timeout:g} s in all, every solver running)")
+                        raise
+                    self._alive()
         finally:
             self._clock[0] += time.perf_counter() - started
 
     def __getattr__(self, name: str) -> Any:
-        if name in ("_reader", "_clock"):  # not set yet (copy, unpickling): no recursion
+        if name in ("_reader", "_clock", "_alive"):  # not set yet (copy, unpickling)
             raise AttributeError(name)
         return getattr(self._reader, name)
 
@@ -423,7 +443,7 @@ class Adapter(gym.Env):
                 f"no installed plugin opens output {name!r} of solver {solver!r} "
                 f"(kind {self._solvers[solver].kind!r})"
             )
-        timed = _TimedReader(reader, self._output_wait)
+        timed = _TimedReader(reader, self._output_wait, self._solvers_alive)
         self._readers[key] = timed
         return timed
 
@@ -551,6 +571,12 @@ class Adapter(gym.Env):
         try:
             obs = self._observed()
             reward = self._rewarded()
+        except (SolverError, CouplingError) as exc:  # a solver died while its output was awaited
+            self._end_episode(abort=True)
+            divergence = self._divergence(exc, session)
+            if divergence is None:
+                raise
+            return self._diverged(divergence, started)
         except NonFiniteValueError:
             # NaN forces are what a diverging flow writes first; its log may lag behind
             # its output files (buffered), so give the plugins a moment to confirm.
@@ -829,6 +855,11 @@ class Adapter(gym.Env):
             "timing": Timing({"step_s": time.perf_counter() - started}),
         }
         return self._last_obs, self._divergence_penalty, True, False, info
+
+    def _solvers_alive(self) -> None:
+        """Raise the session's error if a solver has died (see :class:`_TimedReader`)."""
+        if self._session is not None and not self._session.closed:
+            self._session.ensure_solvers_running("output")
 
     def _health_check(self, process: SolverProcess) -> str | None:
         ctx = self._solvers.get(process.name)

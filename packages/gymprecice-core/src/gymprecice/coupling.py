@@ -273,6 +273,24 @@ class CouplingSession:
             finally:
                 self.closed = True
 
+    def ensure_solvers_running(self, op: str) -> None:
+        """Fail (and end the session) if a solver has exited while the coupling goes on.
+
+        Called while the controller waits for something other than preCICE, a solver's
+        output file for instance: a solver that died there would otherwise be noticed
+        only when that wait times out.
+        """
+        for solver in self.solvers:
+            status = solver.poll()
+            if status is None:
+                continue
+            what = (
+                describe_returncode(status)
+                if status != 0
+                else "exited while the coupling was still running"
+            )
+            self._fail(SolverCrashedError, solver, what, op)
+
     # -- the watchdog ---------------------------------------------------------------------
     @staticmethod
     def _state(payload: dict[str, Any]) -> CouplingState:

@@ -36,6 +36,19 @@ The packaged case with these edits (each measured, docs/training.md "The flap"):
 
 One 4 s run (1 s gust, 3 s episode) costs about 12 s of wall-clock on one core of the
 two, against about 80 s for the packaged case.
+
+Two routes to the tip's state
+-----------------------------
+``observe="watchpoint"`` (the default, what the shipped policy was trained on) reads the
+solid's preCICE watch point, a log file the deal.II solver writes at the end of every
+window. ``observe="precice"`` asks preCICE itself, the route for any solver that writes no
+files: the case then gives the controller one-vertex meshes at the tip
+(``Controller-Mesh-tip``, ``Controller-Mesh-force``), onto which preCICE maps the solid's
+``Displacement`` and the fluid's ``Force`` (nearest neighbour), exchanged in two more explicit schemes that preCICE
+runs once the fluid-solid iterations of a window have converged
+(:data:`PRECICE_OBSERVATION_EDITS`). Both routes give the converged state of the same
+window; their cost and their values side by side: ``benchmarks/bench_flap_observation_routes.py``
+and docs/training.md. The reward, the task's objective, reads the watch point in both.
 """
 
 from __future__ import annotations
@@ -60,6 +73,7 @@ from gymprecice_tutorials.perpendicular_flap.environment import (
 __all__ = [
     "EVAL_GUSTS",
     "FAST_EDITS",
+    "PRECICE_OBSERVATION_EDITS",
     "PerpendicularFlapFastEnv",
     "Gust",
     "fast_case_files",
@@ -79,6 +93,70 @@ FAST_EDITS: tuple[tuple[str, str, str], ...] = (
     ("solid-dealii/parameters.prm", "set Polynomial degree = 4", "set Polynomial degree = 2"),
     ("gymprecice-config.json", '"windows": 10', '"windows": 2'),
 )
+#: (file, old text, new text) that give the controller the tip's state through preCICE
+#: (``observe="precice"``): two one-vertex controller meshes at the tip, the solid's
+#: displacement mapped onto one and the fluid's force onto the other (preCICE maps one
+#: data name onto a mesh from one mesh only, and the solid's mesh carries a force too),
+#: each sent in an explicit scheme that preCICE runs after the implicit fluid-solid scheme
+#: of the window has converged.
+PRECICE_OBSERVATION_EDITS: tuple[tuple[str, str, str], ...] = (
+    (
+        "precice-config.xml",
+        '  <mesh name="Controller-Mesh-inlet" dimensions="2">',
+        '  <mesh name="Controller-Mesh-tip" dimensions="2">\n'
+        '    <use-data name="Displacement" />\n'
+        "  </mesh>\n\n"
+        '  <mesh name="Controller-Mesh-force" dimensions="2">\n'
+        '    <use-data name="Force" />\n'
+        "  </mesh>\n\n"
+        '  <mesh name="Controller-Mesh-inlet" dimensions="2">',
+    ),
+    (
+        "precice-config.xml",
+        '    <write-data name="Velocity" mesh="Controller-Mesh-inlet" />\n',
+        '    <write-data name="Velocity" mesh="Controller-Mesh-inlet" />\n'
+        '    <provide-mesh name="Controller-Mesh-tip" />\n'
+        '    <provide-mesh name="Controller-Mesh-force" />\n'
+        '    <receive-mesh name="Solid-Mesh" from="Solid" />\n'
+        '    <receive-mesh name="Fluid-Mesh-flap" from="Fluid" />\n'
+        '    <read-data name="Displacement" mesh="Controller-Mesh-tip" />\n'
+        '    <read-data name="Force" mesh="Controller-Mesh-force" />\n'
+        '    <mapping:nearest-neighbor direction="read" from="Solid-Mesh" '
+        'to="Controller-Mesh-tip" constraint="consistent" />\n'
+        '    <mapping:nearest-neighbor direction="read" from="Fluid-Mesh-flap" '
+        'to="Controller-Mesh-force" constraint="consistent" />\n',
+    ),
+    (
+        "precice-config.xml",
+        '  <m2n:sockets acceptor="Fluid" connector="Controller" exchange-directory=".." />\n',
+        '  <m2n:sockets acceptor="Fluid" connector="Controller" exchange-directory=".." />\n'
+        '  <m2n:sockets acceptor="Solid" connector="Controller" exchange-directory=".." />\n',
+    ),
+    (
+        "precice-config.xml",
+        '    <exchange data="Velocity" mesh="Controller-Mesh-inlet" from="Controller" '
+        'to="Fluid" initialize="true" />\n'
+        "  </coupling-scheme:parallel-explicit>\n",
+        '    <exchange data="Velocity" mesh="Controller-Mesh-inlet" from="Controller" '
+        'to="Fluid" initialize="true" />\n'
+        '    <exchange data="Force" mesh="Fluid-Mesh-flap" from="Fluid" to="Controller" />\n'
+        "  </coupling-scheme:parallel-explicit>\n\n"
+        "  <!-- the tip's displacement, once the window's fluid-solid iterations converged -->\n"
+        "  <coupling-scheme:parallel-explicit>\n"
+        '    <participants first="Controller" second="Solid" />\n'
+        '    <max-time value="5.0" />\n'
+        '    <time-window-size value="0.01" />\n'
+        '    <exchange data="Displacement" mesh="Solid-Mesh" from="Solid" to="Controller" />\n'
+        "  </coupling-scheme:parallel-explicit>\n",
+    ),
+    (
+        "gymprecice-config.json",
+        '"write_to": {"inlet": "Velocity"}',
+        '"write_to": {"inlet": "Velocity"},\n        "read_from": {"tip": "Displacement", "force": "Force"}',
+    ),
+)
+#: the flap tip, where both observation routes look (m)
+TIP = (0.0, 1.0)
 #: the training case's preCICE time window (s)
 WINDOW = 0.05
 #: simulated seconds per action (two windows)
@@ -128,9 +206,10 @@ def gust(rng: np.random.Generator, settle_time: float, low: float, high: float) 
     return Gust(heights[0], heights[1], switch)
 
 
-def fast_case_files(end_time: float) -> dict[str, str]:
+def fast_case_files(end_time: float, observe: str = "watchpoint") -> dict[str, str]:
     """The training case's files: the packaged case with :data:`FAST_EDITS` applied and
-    the run's end (preCICE max-time, the solvers' end times) at ``end_time``."""
+    the run's end (preCICE max-time, the solvers' end times) at ``end_time``; with
+    ``observe="precice"``, :data:`PRECICE_OBSERVATION_EDITS` too."""
     files = {
         str(path.relative_to(CASE_DIR)): path.read_text()
         for path in sorted(CASE_DIR.rglob("*"))
@@ -138,6 +217,7 @@ def fast_case_files(end_time: float) -> dict[str, str]:
     }
     edits = [
         *FAST_EDITS,
+        *(PRECICE_OBSERVATION_EDITS if observe == "precice" else ()),
         (
             "solid-dealii/parameters.prm",
             "set End time        = 5",
@@ -162,9 +242,10 @@ def fast_case_files(end_time: float) -> dict[str, str]:
     files[xml], count = re.subn(
         r'<max-time value="[^"]*" />', f'<max-time value="{_fmt(end_time)}" />', files[xml]
     )
-    if count != 2:
+    schemes = 3 if observe == "precice" else 2
+    if count != schemes:
         raise ValueError(
-            f"{CASE_DIR / xml}: expected two coupling schemes' max-time, found {count}"
+            f"{CASE_DIR / xml}: expected {schemes} coupling schemes' max-time, found {count}"
         )
     files[xml] = files[xml].replace(
         'time-window-size value="0.01"', f'time-window-size value="{_fmt(WINDOW)}"'
@@ -180,8 +261,11 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
     """Damp the flap's swing after a gust, on the flap's training case (module docstring).
 
     * **Action** ``(1,)``: the jet centre, as :class:`PerpendicularFlapEnv`.
-    * **Observation** ``(6,)``: the tip's displacement ``(dx, dy)``, its velocity over the
-      last window ``(vx, vy)`` and the force on the tip ``(fx, fy)``, from the watch point.
+    * **Observation** ``(6,)``: the tip's displacement ``(dx, dy)``, its velocity
+      ``(vx, vy)`` and the force on the tip ``(fx, fy)``. ``observe="watchpoint"``
+      (default): from the solid's watch point, the velocity over the last window.
+      ``observe="precice"``: read through preCICE (module docstring), the velocity over
+      the last action, the force the fluid's at its face nearest the tip.
     * **Reward**: ``-mean |d|`` over the step's windows (metres), as the parent.
     * **Episode**: ``episode_time`` seconds (default 3: 30 actions) after a
       ``settle_time`` gust (default 1 s); truncated at the end, no terminal state.
@@ -202,9 +286,18 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         settle_time: float = 1.0,
         uncontrolled: bool = False,
         double: bool = False,
+        observe: str = "watchpoint",
         run_root: str | Path | None = None,
         **kwargs: Any,
     ) -> None:
+        if observe not in ("watchpoint", "precice"):
+            raise ValueError(f"observe must be 'watchpoint' or 'precice', got {observe!r}")
+        if observe == "precice" and (double or options is not None):
+            raise ValueError(
+                "observe='precice' edits the packaged training case (a tip mesh, two more "
+                "coupling schemes); it runs on the real solvers, without options or double"
+            )
+        self.observe = observe
         for name, value in (("episode_time", episode_time), ("settle_time", settle_time)):
             steps = value / ACTION_TIME
             if not math.isfinite(value) or value <= 0 or abs(steps - round(steps)) > 1e-9:
@@ -223,7 +316,9 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
             )
         elif options is None:
             options = write_case_files(
-                "perpendicular-flap-fast", fast_case_files(end_time), run_root
+                f"perpendicular-flap-fast{'-precice' if observe == 'precice' else ''}",
+                fast_case_files(end_time, observe),
+                run_root,
             )
         elif double:
             raise ValueError(
@@ -237,6 +332,10 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
             from gymprecice_tutorials.perpendicular_flap import double as flap_double
 
             self.set_interface_vertices(self.INLET, flap_double.training_inlet().coordinates)
+        if observe == "precice":
+            self.set_interface_vertices("tip", [TIP])
+            self.set_interface_vertices("force", [TIP])
+        self._last_tip: np.ndarray | None = None  # the previous action's tip (precice route)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(6,), dtype=np.float32)
         self.uncontrolled = bool(uncontrolled)
         self.start: Gust | None = None
@@ -259,6 +358,13 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         while self.time < self.settle_time - 1e-9:
             centre = self.start.centre(self.time)
             obs, _, terminated, truncated, info = super().step(np.array([centre], np.float32))
+            if terminated and "diverged" in info:
+                raise RuntimeError(
+                    f"solver {info['diverged']['solver']!r} diverged at t = {self.time:g} s "
+                    f"during the {self.settle_time} s gust, before the agent acted: "
+                    f"{info['diverged']['evidence']}; the case cannot take this inflow "
+                    f"(inlet_max_velocity {self.inlet_max_velocity:g} m/s)"
+                )
             if terminated or truncated:
                 raise RuntimeError(
                     f"the coupled run ended at t = {self.time:g} s during the {self.settle_time} s "
@@ -282,7 +388,9 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         return {ref: velocity for ref in write_var_list}
 
     def _get_observation(self, read_data: Any, read_var_list: list) -> np.ndarray:
-        state = super()._get_observation(read_data, read_var_list)
+        state = super()._get_observation(read_data, read_var_list)  # the reward's rows too
+        if self.observe == "precice":
+            return self._precice_observation(read_data)
         rows = self._tip.data
         displacement = self._tip.field("Displacement", rows[-2:])
         if len(displacement) == 2:
@@ -290,6 +398,19 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         else:
             velocity = np.zeros(2)
         return np.concatenate([state[:2], velocity, state[2:]]).astype(np.float32)
+
+    def _precice_observation(self, read_data: Any) -> np.ndarray:
+        """The tip's state as preCICE mapped it onto the controller's tip vertex."""
+        displacement = np.asarray(read_data["Displacement-tip"], dtype=float).reshape(-1)[:2]
+        force = np.asarray(read_data["Force-force"], dtype=float).reshape(-1)[:2]
+        previous = self._last_tip
+        velocity = np.zeros(2) if previous is None else (displacement - previous) / ACTION_TIME
+        self._last_tip = displacement
+        return np.concatenate([displacement, velocity, force]).astype(np.float32)
+
+    def _close_external_resources(self) -> None:
+        super()._close_external_resources()
+        self._last_tip = None
 
     def _initial_action(self) -> np.ndarray:
         """Choose this episode's start; the run's first window is the gust's first height.
