@@ -264,6 +264,41 @@ def test_a_flap_driven_to_diverge_reports_participant_time_and_log_line_and_goes
 
 
 @pytest.mark.timeout(600)
+def test_a_training_run_whose_agent_drives_the_flow_to_diverge_finishes_and_counts_them(
+    tmp_path: Path,
+) -> None:
+    """``gymprecice train`` on the quickstart with a jet bound 200 times its own: most
+    episodes diverge under PPO's first actions. The run finishes with its model, the
+    training log counts the divergences, and none of them is charged as a failure."""
+    import csv
+    import json
+    import subprocess
+    import sys
+
+    kwargs = {
+        "max_flow_rate": 0.05,
+        "case_overrides": {"prerun_end_time": 0.05, "actions_per_episode": 6},
+    }
+    args = ["train", "quickstart", "--require-solvers", "--n-envs", "1", "--timesteps", "24"]
+    args += ["--n-steps", "12", "--batch-size", "12", "--seed", "0", "--out", "train"]
+    args += ["--env-kwargs", json.dumps(kwargs)]
+    proc = subprocess.run(
+        [sys.executable, "-m", "gymprecice", *args],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=540,
+    )
+    assert proc.returncode == 0, f"exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}"
+    assert (tmp_path / "train" / "model.zip").is_file()
+    with open(tmp_path / "train" / "progress.csv", newline="") as handle:
+        last = list(csv.DictReader(handle))[-1]
+    assert float(last["gymprecice/divergences_total"]) > 0
+    assert float(last["gymprecice/failures_total"]) == 0
+    assert "0 failures" in proc.stdout
+
+
+@pytest.mark.timeout(600)
 def test_a_jet_far_beyond_its_bound_diverges_as_an_outcome_and_the_next_episode_runs(
     tmp_path: Path,
 ) -> None:
