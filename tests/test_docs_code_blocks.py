@@ -12,13 +12,17 @@ tested where it lives (tests/test_examples.py).
 
 from __future__ import annotations
 
+import importlib
 import re
+import sys
 import types
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from gymprecice.testing.conformance import SolverPluginConformance, make_solver_context
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
@@ -88,7 +92,6 @@ def test_plain_blocks_run(block: Block, tmp_path: Path, monkeypatch) -> None:
 
 def test_readme_plugin_block_is_a_working_plugin(tmp_path: Path) -> None:
     from gymprecice.plugins import solver_kinds, temporary_plugin
-    from gymprecice.testing.conformance import make_solver_context
 
     module = types.ModuleType("my_plugin")
     module.__dict__.update(_run(_only("plugin")))
@@ -102,6 +105,58 @@ def test_readme_plugin_block_is_a_working_plugin(tmp_path: Path) -> None:
         assert not (solver.run_dir / "output.dat").exists()
         spec = pm.hook.gymprecice_launch_solver(solver=solver)
         assert list(spec.argv) == ["mysolver", "case.cfg"] and spec.cwd == solver.run_dir
+
+
+class TestReadmePluginConformance(SolverPluginConformance):
+    """The README's plugin, exactly as printed, passes the suite a plugin package runs.
+
+    It is written to ``my_plugin.py`` and imported from there (as an installed plugin
+    would be); only the entry point is not checked, since the README's ``pyproject.toml``
+    is not installed here.
+    """
+
+    requires_entry_point = False
+
+    @pytest.fixture
+    def plugin(self, tmp_path_factory: pytest.TempPathFactory, monkeypatch) -> types.ModuleType:
+        where = tmp_path_factory.mktemp("readme-plugin")
+        (where / "my_plugin.py").write_text(_only("plugin").code)
+        monkeypatch.syspath_prepend(str(where))
+        sys.modules.pop("my_plugin", None)
+        module = importlib.import_module("my_plugin")
+        yield module
+        sys.modules.pop("my_plugin", None)
+
+    @pytest.fixture
+    def kind(self) -> str:
+        return "mysolver"
+
+    @pytest.fixture
+    def make_solver(self, kind: str):
+        def make(base: Path):
+            source = base / "case" / "solver"
+            source.mkdir(parents=True)
+            (source / "case.cfg").write_text("steps = 10\n")
+            return make_solver_context(kind, source, base)
+
+        return make
+
+
+def test_readme_plugin_runs_in_an_env_without_a_prepare_hook(tmp_path: Path) -> None:
+    """The README's plugin has no prepare hook: core's copy of the case is its preparation."""
+    from gymprecice import lifecycle
+    from gymprecice.plugins import temporary_plugin
+
+    module = types.ModuleType("my_plugin")
+    module.__dict__.update(_run(_only("plugin")))
+    assert not hasattr(module, "gymprecice_prepare_case")  # the point of this test
+    with temporary_plugin(module, "my_plugin") as pm:
+        source = tmp_path / "case"
+        source.mkdir()
+        solver = make_solver_context("mysolver", source, tmp_path)
+        assert lifecycle.prepare_case(pm.hook, solver) is False  # nothing beyond the copy
+        lifecycle.reset_case(pm.hook, solver)
+        assert lifecycle.launch_spec(pm.hook, solver).log_name == "mysolver.log"
 
 
 def _jet_geometry_plugin(spec) -> types.ModuleType:

@@ -36,6 +36,7 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 import numpy as np
 
+from gymprecice import lifecycle
 from gymprecice.actions import ActionSchedule
 from gymprecice.config import (
     GymPreciceConfig,
@@ -46,7 +47,6 @@ from gymprecice.config import (
 from gymprecice.coupling import CouplingSession, CouplingState, WorkerProcess
 from gymprecice.divergence import HARD_FAULT_STATUSES, Divergence, checked_penalty
 from gymprecice.errors import (
-    CaseError,
     ConfigError,
     CouplingError,
     SolverDivergedError,
@@ -445,8 +445,7 @@ class Adapter(gym.Env):
                 precice=self.config.precice,
                 precice_config_file=self._run.precice_config_file,
             )
-            if not self._hook.gymprecice_prepare_case(solver=ctx):
-                raise CaseError(f"{ctx.describe()}: no installed plugin prepares this kind")
+            lifecycle.prepare_case(self._hook, ctx)
             self._solvers[spec.name] = ctx
 
     # -- Gymnasium API ---------------------------------------------------------------------
@@ -489,12 +488,9 @@ class Adapter(gym.Env):
             for ctx in self._solvers.values():
                 ctx.rng = np.random.default_rng(episode_seed)
                 ctx.reset_options = dict(options or {})
-                if not self._hook.gymprecice_reset_case(solver=ctx):
-                    raise CaseError(f"{ctx.describe()}: no installed plugin resets this kind")
+                lifecycle.reset_case(self._hook, ctx)
             for ctx in self._solvers.values():
-                spec = self._hook.gymprecice_launch_solver(solver=ctx)
-                if spec is None:
-                    raise CaseError(f"{ctx.describe()}: no installed plugin launches this kind")
+                spec = lifecycle.launch_spec(self._hook, ctx)
                 session.solvers.append(
                     SolverProcess.start(ctx.name, spec, env_index=self.env_index, registry=registry)
                 )

@@ -88,8 +88,11 @@ def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     Core has already copied the pristine case into the env's run directory. Typical work:
     generate the mesh, decompose, run an uncoupled pre-run to a developed state, and
     remember in ``solver.state`` what :func:`gymprecice_reset_case` must restore.
-    Return ``True`` when handled, ``None`` when the solver is not this plugin's kind.
-    Raise :class:`gymprecice.errors.CaseError` with the file and the fix on bad input.
+    Return ``True`` when prepared. ``None`` means "no preparation from this plugin" (not
+    its kind, or nothing to do): when no plugin prepares a solver, core's copy of the case
+    is its preparation, so a plugin whose solver needs only its case files may leave this
+    hook out. Raise :class:`gymprecice.errors.CaseError` with the file and the fix on bad
+    input; any other answer (``False``) is refused as a plugin bug.
     """
 
 

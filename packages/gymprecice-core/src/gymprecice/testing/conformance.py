@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gymprecice import hookspecs
+from gymprecice import hookspecs, lifecycle
 from gymprecice.plugins import (
     DISABLE_ENV_VAR,
     ENTRY_POINT_GROUP,
@@ -310,10 +310,10 @@ class SolverPluginConformance:
         excluded = [solver.run_dir, solver.env_dir / _CORE_STATE_DIR]
         around_before = tree_snapshot(tmp_path, exclude=excluded)
 
-        assert manager.hook.gymprecice_prepare_case(solver=solver) is True
+        lifecycle.prepare_case(manager.hook, solver)
         for episode in range(2):  # a reset must also work after a reset
             solver.rng = np.random.default_rng(episode)
-            assert manager.hook.gymprecice_reset_case(solver=solver) is True
+            lifecycle.reset_case(manager.hook, solver)
 
         assert not _diff(source_before, tree_snapshot(solver.source_dir)), (
             f"the pristine case {solver.source_dir} was modified"
@@ -324,9 +324,9 @@ class SolverPluginConformance:
     def test_launch_spec_runs_inside_run_dir(
         self, manager: GymPrecicePluginManager, solver: SolverContext
     ) -> None:
-        assert manager.hook.gymprecice_prepare_case(solver=solver) is True
-        assert manager.hook.gymprecice_reset_case(solver=solver) is True
-        spec = manager.hook.gymprecice_launch_solver(solver=solver)
+        lifecycle.prepare_case(manager.hook, solver)
+        lifecycle.reset_case(manager.hook, solver)
+        spec = lifecycle.launch_spec(manager.hook, solver)
         assert isinstance(spec, LaunchSpec), f"launch returned {spec!r}, not a LaunchSpec"
         argv = list(spec.argv)
         assert argv, "LaunchSpec.argv is empty"
@@ -361,8 +361,8 @@ class SolverPluginConformance:
         """
         if not self._implemented(manager, "gymprecice_detect_divergence"):
             pytest.skip("gymprecice_detect_divergence is not implemented")
-        assert manager.hook.gymprecice_prepare_case(solver=solver) is True
-        assert manager.hook.gymprecice_reset_case(solver=solver) is True
+        lifecycle.prepare_case(manager.hook, solver)
+        lifecycle.reset_case(manager.hook, solver)
         before = tree_snapshot(solver.env_dir)
         for returncode in (None, 0, 1):
             for log_text in ("", "some ordinary solver output\n"):
