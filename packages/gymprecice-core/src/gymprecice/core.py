@@ -827,10 +827,17 @@ class Adapter(gym.Env):
         return self._last_obs, self._divergence_penalty, True, False, info
 
     def _health_check(self, process: SolverProcess) -> str | None:
+        """The plugin's diagnosis of a waiting or exited solver, without its name.
+
+        Core's error message names the solver and the env already; a plugin that starts
+        its message with ``solver.describe()`` (as the hook spec once showed) would have
+        it twice.
+        """
         ctx = self._solvers.get(process.name)
         if ctx is None:
             return None
-        return self._hook.gymprecice_check_solver(solver=ctx, log_text=process.log_tail(200))
+        problem = self._hook.gymprecice_check_solver(solver=ctx, log_text=process.log_tail(200))
+        return _without_label(problem, ctx.describe()) if problem else None
 
     def _end_episode(self, *, abort: bool) -> None:
         """Kill (or finish) the running session; it stays reachable until it is dead.
@@ -906,6 +913,13 @@ def _refuse_non_finite(value: Any, method: str, env_index: int, step: int) -> No
                 "it was not passed to the learner. Check the solver output it reads (a "
                 "diverging solver belongs in its plugin's gymprecice_detect_divergence)"
             )
+
+
+def _without_label(message: str, label: str) -> str:
+    """``message`` without a leading ``label`` (and the colon after it)."""
+    if message.startswith(label):
+        return message[len(label) :].lstrip(" :") or message
+    return message
 
 
 def _fit_dimensions(geometry: InterfaceGeometry, dimensions: int) -> InterfaceGeometry:

@@ -214,7 +214,7 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
         for needle, meaning in _LOG_HINTS:
             if needle in line:
                 return (
-                    f"{solver.describe()}: {meaning}: {line.strip()!r} "
+                    f"{meaning}: {line.strip()!r} "
                     f"(log in {solver.run_dir}); fix the script or the PATH and reset"
                 )
     return None
