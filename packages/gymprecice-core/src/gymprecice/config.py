@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import difflib
 import json
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -168,6 +169,14 @@ class GymPreciceConfig:
     def time_window_size(self) -> float | None:
         return self.precice.time_window_size(self.participant)
 
+    @property
+    def precice_library(self) -> str:
+        """The module the env imports as ``precice``: ``GYMPRECICE_PRECICE_LIBRARY``, else
+        ``precice.library`` of the configuration."""
+        from gymprecice.solver import LIBRARY_ENV_VAR
+
+        return os.environ.get(LIBRARY_ENV_VAR) or self.model.precice.library
+
     def where(self) -> str:
         return str(self.file) if self.file else f"<config dict for {self.case_dir}>"
 
@@ -259,6 +268,7 @@ def check_solver_cases(config: GymPreciceConfig) -> None:
             config_file=config.file,
             precice=config.precice,
             precice_config_file=config.precice_file,
+            precice_library=config.precice_library,
         )
         problems = [
             p for answer in hook.gymprecice_validate_case(solver=context) for p in answer or ()

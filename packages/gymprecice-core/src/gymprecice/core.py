@@ -22,6 +22,7 @@ is refused with the method's name and the step, never handed to the learner.
 from __future__ import annotations
 
 import atexit
+import dataclasses
 import logging
 import math
 import os
@@ -63,11 +64,10 @@ from gymprecice.rundir import (
     create_run_directory,
     env_root,
 )
-from gymprecice.solver import InterfaceGeometry, OutputReader, SolverContext
+from gymprecice.solver import LIBRARY_ENV_VAR, InterfaceGeometry, OutputReader, SolverContext
 
 __all__ = ["Adapter", "DataDict", "DataRef", "Timing"]
 
-LIBRARY_ENV_VAR = "GYMPRECICE_PRECICE_LIBRARY"
 
 log = logging.getLogger(__name__)
 
@@ -444,6 +444,7 @@ class Adapter(gym.Env):
                 config_file=self.config.file,
                 precice=self.config.precice,
                 precice_config_file=self._run.precice_config_file,
+                precice_library=self._library(),
             )
             lifecycle.prepare_case(self._hook, ctx)
             self._solvers[spec.name] = ctx
@@ -491,6 +492,11 @@ class Adapter(gym.Env):
                 lifecycle.reset_case(self._hook, ctx)
             for ctx in self._solvers.values():
                 spec = lifecycle.launch_spec(self._hook, ctx)
+                # The solver's own preCICE bindings must be the env's (a Python solver reads
+                # this); a plugin that sets the variable itself keeps its value.
+                spec = dataclasses.replace(
+                    spec, env={LIBRARY_ENV_VAR: ctx.precice_library, **dict(spec.env)}
+                )
                 session.solvers.append(
                     SolverProcess.start(ctx.name, spec, env_index=self.env_index, registry=registry)
                 )
@@ -609,7 +615,7 @@ class Adapter(gym.Env):
 
     # -- internals -------------------------------------------------------------------------
     def _library(self) -> str:
-        return os.environ.get(LIBRARY_ENV_VAR) or self.config.model.precice.library
+        return self.config.precice_library
 
     def _init_request(self, initial: dict[tuple[str, str], np.ndarray]) -> dict[str, Any]:
         assert self._run is not None

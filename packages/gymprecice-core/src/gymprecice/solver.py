@@ -19,6 +19,13 @@ import numpy as np
 if TYPE_CHECKING:
     from gymprecice.precice_xml import PreciceConfig
 
+#: The module name of gymprecice's pyprecice test double (``precice.library`` selects it).
+TEST_DOUBLE_LIBRARY = "gymprecice.testing.fake_precice"
+#: Environment variable naming the preCICE module: read by core (it overrides the
+#: configuration's ``precice.library`` for the env's side) and set by core in every solver
+#: process it launches, so a Python solver can import the same library.
+LIBRARY_ENV_VAR = "GYMPRECICE_PRECICE_LIBRARY"
+
 
 @dataclass
 class SolverContext:
@@ -43,6 +50,16 @@ class SolverContext:
     reset_options: dict[str, Any] = field(default_factory=dict)
     #: Anything a plugin wants to keep between hooks for this solver (e.g. the initial time).
     state: dict[str, Any] = field(default_factory=dict)
+    #: The module the env's coupling imports as ``precice``: ``"precice"`` (real pyprecice)
+    #: or ``"gymprecice.testing.fake_precice"`` (the test double). Every participant of a run
+    #: must use the same one; core also exports it to the solver's process as
+    #: ``GYMPRECICE_PRECICE_LIBRARY``.
+    precice_library: str = "precice"
+
+    @property
+    def uses_test_double(self) -> bool:
+        """Whether the env couples through gymprecice's preCICE test double."""
+        return self.precice_library == TEST_DOUBLE_LIBRARY
 
     def describe(self) -> str:
         """Short label for error messages: ``solver 'fluid' (openfoam) of env 3``."""
