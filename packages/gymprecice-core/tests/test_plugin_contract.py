@@ -116,3 +116,64 @@ def test_a_plugin_message_that_names_the_solver_is_not_named_twice() -> None:
     label = "solver 'rod' (mysolver) of env 0"
     assert _without_label(f"{label}: adapter not loaded", label) == "adapter not loaded"
     assert _without_label("adapter not loaded", label) == "adapter not loaded"
+
+
+REAL_BANNER = "---[precice] \x1b[0m This is preCICE version 3.4.1"
+
+
+def test_a_solver_on_real_precice_next_to_the_double_is_reported_at_reset(tmp_path: Path) -> None:
+    """A mixed set-up waits forever; the banner in the solver's log shows it at once.
+
+    The solver stands in for a real-preCICE participant: it prints real preCICE's first
+    log line and waits, as real preCICE waits for a partner that never comes. The
+    progress timeout is 60 s, so an error here is the library check, not a timeout.
+    """
+    script = (
+        f"echo \"$GYMPRECICE_PRECICE_LIBRARY\" > library.txt; echo '{REAL_BANNER}'; exec sleep 60"
+    )
+    case = make_case(tmp_path, ["bash", "-c", script])
+    error = reset_error(case)
+    assert error.returncode is None
+    assert "runs real preCICE 3.4.1" in error.summary
+    assert f"the env's coupling uses the preCICE test double ({DOUBLE!r})" in error.summary
+    assert "set precice.library in gymprecice-config.json" in error.summary
+    # core told the solver which library the env uses
+    library = tmp_path / "runs" / "env_0" / "rod" / "library.txt"
+    assert library.read_text().strip() == DOUBLE
+
+
+def test_a_solver_on_the_double_next_to_real_precice_is_named_too() -> None:
+    from gymprecice.precice_library import library_in_log, mixed_library_problem
+
+    double_log = "---[precice]  This is preCICE version 3.4.1 (gymprecice fake_precice)\n"
+    assert library_in_log(double_log).double
+    assert not library_in_log(REAL_BANNER).double
+    assert library_in_log("Time = 0.1\n") is None
+    problem = mixed_library_problem("precice", double_log)
+    assert problem is not None
+    assert "it runs the preCICE test double (gymprecice.testing.fake_precice)" in problem
+    assert "the env's coupling uses real preCICE (module 'precice')" in problem
+    assert mixed_library_problem("precice", REAL_BANNER) is None
+    assert mixed_library_problem(DOUBLE, double_log) is None
+
+
+def test_the_context_carries_the_envs_library(tmp_path: Path, monkeypatch) -> None:
+    """``SolverContext.precice_library``: the configuration's, or the variable's override."""
+    case = make_case(tmp_path, partner_argv())
+    monkeypatch.delenv("GYMPRECICE_PRECICE_LIBRARY", raising=False)
+    env = CylinderEnv(str(case))
+    try:
+        env._ensure_prepared()
+        ctx = env._solvers["rod"]
+        assert ctx.precice_library == DOUBLE and ctx.uses_test_double
+        env.reset(seed=0)  # both sides on the double: the library check stays quiet
+        env.step(np.zeros(1, np.float32))
+    finally:
+        env.close()
+    monkeypatch.setenv("GYMPRECICE_PRECICE_LIBRARY", "precice")
+    env = CylinderEnv(str(case))
+    try:
+        env._ensure_prepared()
+        assert env._solvers["rod"].precice_library == "precice"
+    finally:
+        env.close()

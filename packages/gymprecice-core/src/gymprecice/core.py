@@ -56,6 +56,7 @@ from gymprecice.errors import (
 )
 from gymprecice.pidregistry import kill_recorded_groups
 from gymprecice.plugins import get_plugin_manager, solver_kinds
+from gymprecice.precice_library import mixed_library_problem
 from gymprecice.processes import PidRegistry, SolverProcess
 from gymprecice.rundir import (
     EnvIndexClaim,
@@ -833,7 +834,10 @@ class Adapter(gym.Env):
         return self._last_obs, self._divergence_penalty, True, False, info
 
     def _health_check(self, process: SolverProcess) -> str | None:
-        """The plugin's diagnosis of a waiting or exited solver, without its name.
+        """What is wrong with a waiting or exited solver: core's own check, then the plugin's.
+
+        Core checks that the solver runs the env's preCICE library (a mixed set-up waits
+        forever); the plugin's diagnosis comes without the solver's name.
 
         Core's error message names the solver and the env already; a plugin that starts
         its message with ``solver.describe()`` (as the hook spec once showed) would have
@@ -842,7 +846,11 @@ class Adapter(gym.Env):
         ctx = self._solvers.get(process.name)
         if ctx is None:
             return None
-        problem = self._hook.gymprecice_check_solver(solver=ctx, log_text=process.log_tail(200))
+        log_text = process.log_tail(200)
+        mixed = mixed_library_problem(ctx.precice_library, log_text)
+        if mixed:
+            return mixed
+        problem = self._hook.gymprecice_check_solver(solver=ctx, log_text=log_text)
         return _without_label(problem, ctx.describe()) if problem else None
 
     def _end_episode(self, *, abort: bool) -> None:

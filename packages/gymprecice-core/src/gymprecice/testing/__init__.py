@@ -8,7 +8,9 @@ let every test couple real processes anyway:
   partner died blocks forever instead of raising). Select it with
   ``"precice": {"library": "gymprecice.testing.fake_precice"}`` in gymprecice-config.json
   or ``GYMPRECICE_PRECICE_LIBRARY=gymprecice.testing.fake_precice``. Every participant of a
-  run must use the same library. Where real preCICE kills the process on a misuse (abort or
+  run must use the same library: core exports the env's as ``GYMPRECICE_PRECICE_LIBRARY`` to
+  every solver it launches (``SolverContext.precice_library`` tells the plugin), and reports
+  at reset a solver whose log shows the other one. Where real preCICE kills the process on a misuse (abort or
   segmentation fault), the double raises ``PreciceError`` unless
   ``GYMPRECICE_FAKE_PRECICE_MISUSE=crash`` asks it to die the same way.
   ``tests/test_real_precice.py`` runs the same scenarios against both libraries.
