@@ -177,3 +177,23 @@ def test_the_context_carries_the_envs_library(tmp_path: Path, monkeypatch) -> No
         assert env._solvers["rod"].precice_library == "precice"
     finally:
         env.close()
+
+
+def test_the_last_steps_wait_for_the_solvers_to_exit_counts_as_waiting(tmp_path: Path) -> None:
+    """On the last step core finalizes and waits for the solvers: that is ``wait_s``.
+
+    The solver lingers 1 s after its coupling ended, so the last step waits at least that
+    long for it, while preCICE itself is done in milliseconds.
+    """
+    argv = ["bash", "-c", " ".join(partner_argv()) + "; sleep 1"]
+    env = CylinderEnv(str(make_case(tmp_path, argv, max_time=0.02)))
+    try:
+        env.reset(seed=0)
+        truncated, info = False, {}
+        while not truncated:
+            _, _, _, truncated, info = env.step(np.zeros(1, np.float32))
+        timing = info["timing"]
+        assert timing["wait_s"] >= 1.0, dict(timing)
+        assert timing["wait_s"] + timing["env_s"] <= timing["step_s"]
+    finally:
+        env.close()

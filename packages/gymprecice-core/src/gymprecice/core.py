@@ -55,7 +55,7 @@ from gymprecice.errors import (
     SolverTimeoutError,
 )
 from gymprecice.pidregistry import kill_recorded_groups
-from gymprecice.plugins import get_plugin_manager, solver_kinds
+from gymprecice.plugins import get_plugin_manager, plugin_failures, solver_kinds
 from gymprecice.precice_library import mixed_library_problem
 from gymprecice.processes import PidRegistry, SolverProcess
 from gymprecice.rundir import (
@@ -108,9 +108,10 @@ class DataDict(dict):
 class Timing(Mapping[str, float]):
     """Seconds spent in one step or reset: ``precice_s``, ``wait_s``, ``env_s``, ``step_s``.
 
-    ``wait_s`` is the time spent waiting for the solvers: in preCICE, and in the
-    ``wait_until`` of readers from :meth:`Adapter.open_output`; ``env_s`` the rest of the
-    env's own code. Read it like a dict. Two timings compare equal when they measure the same things:
+    ``wait_s`` is the time spent waiting for the solvers: in preCICE, in the
+    ``wait_until`` of readers from :meth:`Adapter.open_output`, and on an episode's last
+    step in finalizing and letting the solvers exit; ``env_s`` the rest of the env's own
+    code, so ``wait_s + env_s`` accounts for ``step_s`` but for a few bookkeeping lines. Read it like a dict. Two timings compare equal when they measure the same things:
     wall-clock figures describe the machine, not the environment's state, so Gymnasium's
     determinism check (which compares the infos of two identical steps) must not see them.
     """
@@ -230,7 +231,7 @@ class Adapter(gym.Env):
                 "directory holding it), or the parsed dict"
             )
         self.config: GymPreciceConfig = load_config(options, case_dir=case_dir)
-        check_solver_kinds(self.config, solver_kinds())
+        check_solver_kinds(self.config, solver_kinds(), plugin_failures())
         configured = self.config.model.environment.divergence_penalty
         self._divergence_penalty = checked_penalty(
             type(self).divergence_penalty if configured is None else configured,
@@ -569,7 +570,11 @@ class Adapter(gym.Env):
         wait_s += output_wait  # waiting for a solver's files is waiting for the solver
         env_s += time.perf_counter() - after - output_wait
         if terminated or truncated:
+            # Finalizing and waiting for the solvers to exit is waiting for the solvers
+            # (tens of ms on the last step); without this it would fall in no bucket.
+            finishing = time.perf_counter()
             self._end_episode(abort=terminated and state.ongoing)
+            wait_s += time.perf_counter() - finishing
             self._episode_over = True
         info = self._info(
             state,
