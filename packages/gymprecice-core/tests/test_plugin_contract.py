@@ -197,3 +197,23 @@ def test_the_last_steps_wait_for_the_solvers_to_exit_counts_as_waiting(tmp_path:
         assert timing["wait_s"] + timing["env_s"] <= timing["step_s"]
     finally:
         env.close()
+
+
+def test_readers_follow_the_conventions_or_say_which_is_missing(tmp_path: Path) -> None:
+    from gymprecice.core import _TimedReader
+    from gymprecice.solver import OutputReader, WaitableOutputReader
+    from gymprecice.watchpoints import WatchPointLog
+
+    log = WatchPointLog(tmp_path / "precice-Solid-watchpoint-Tip.log")
+    assert isinstance(log, WaitableOutputReader) and log.start_time == 0.0
+
+    class Plain:
+        def read_new(self):
+            return []
+
+        def close(self):
+            pass
+
+    assert isinstance(Plain(), OutputReader) and not isinstance(Plain(), WaitableOutputReader)
+    with pytest.raises(AttributeError, match="Plain has no wait_until.*WaitableOutputReader"):
+        _TimedReader(Plain(), [0.0]).wait_until(1.0, 5)

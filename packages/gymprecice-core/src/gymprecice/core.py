@@ -195,9 +195,15 @@ class _TimedReader:
         self._clock = clock
 
     def wait_until(self, *args: Any, **kwargs: Any) -> Any:
+        wait = getattr(self._reader, "wait_until", None)
+        if wait is None:
+            raise AttributeError(
+                f"{type(self._reader).__name__} has no wait_until: the plugin's reader does not "
+                "follow gymprecice.solver.WaitableOutputReader; poll read_new() instead"
+            )
         started = time.perf_counter()
         try:
-            return self._reader.wait_until(*args, **kwargs)  # type: ignore[attr-defined]
+            return wait(*args, **kwargs)
         finally:
             self._clock[0] += time.perf_counter() - started
 
