@@ -215,5 +215,5 @@ def test_readers_follow_the_conventions_or_say_which_is_missing(tmp_path: Path) 
             pass
 
     assert isinstance(Plain(), OutputReader) and not isinstance(Plain(), WaitableOutputReader)
-    with pytest.raises(AttributeError, match="Plain has no wait_until.*WaitableOutputReader"):
+    with pytest.raises(AttributeError, match=r"Plain has no wait_until.*WaitableOutputReader"):
         _TimedReader(Plain(), [0.0]).wait_until(1.0, 5)
