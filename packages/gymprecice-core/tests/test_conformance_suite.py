@@ -142,3 +142,40 @@ def test_a_missing_reset_says_which_hook_to_implement(solver, tmp_path: Path) ->
         SolverPluginConformance().test_prepare_and_reset_write_only_under_run_dir(
             manager_of(NoReset()), solver, tmp_path
         )
+
+
+def test_make_solver_context_sets_every_field_a_hook_reads(tmp_path: Path) -> None:
+    from gymprecice.testing import case_config, make_solver_context, validation_context
+
+    source = tmp_path / "case" / "solid"
+    source.mkdir(parents=True)
+    (source / "solid.cfg").write_text("x\n")
+    xml = case_config("fake_flap", tmp_path / "case")
+    ctx = make_solver_context(
+        "toy",
+        source,
+        tmp_path / "runs",
+        name="solid",
+        options={"cfg": "solid.cfg"},
+        participant="Solid",
+        env_index=2,
+        seed=7,
+        precice_config=xml,
+        config_file=tmp_path / "case" / "gymprecice-config.json",
+        precice_library="gymprecice.testing.fake_precice",
+        reset_options={"gust": 1.0},
+        state={"k": 1},
+    )
+    assert (
+        ctx.run_dir == tmp_path / "runs" / "env_2" / "solid"
+        and (ctx.run_dir / "solid.cfg").is_file()
+    )
+    assert ctx.precice_config_file == tmp_path / "runs" / "env_2" / "precice-config.xml"
+    assert ctx.precice is not None and "Solid" in ctx.precice.participants
+    assert ctx.uses_test_double and ctx.reset_options == {"gust": 1.0} and ctx.state == {"k": 1}
+    assert ctx.rng is not None and ctx.config_file.name == "gymprecice-config.json"
+
+    pristine = validation_context(ctx, xml)
+    assert pristine.run_dir == pristine.source_dir == source
+    assert pristine.env_dir == tmp_path / "case" and pristine.precice_config_file == xml
+    assert pristine.rng is None and pristine.state == {} and pristine.options == ctx.options
