@@ -12,13 +12,17 @@ tested where it lives (tests/test_examples.py).
 
 from __future__ import annotations
 
+import importlib
 import re
+import sys
 import types
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from gymprecice.testing.conformance import SolverPluginConformance, make_solver_context
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
@@ -69,8 +73,9 @@ def _only(mode: str) -> Block:
 
 
 def test_the_blocks_are_found() -> None:
-    assert {"jet-env", "plugin", "compile"} <= {b.mode for b in BLOCKS}
-    assert all(b.mode in ("run", "compile", "jet-env", "plugin") for b in BLOCKS), BLOCKS
+    modes = ("run", "compile", "jet-env", "plugin", "plugin-guide")
+    assert {"jet-env", "plugin", "plugin-guide", "compile"} <= {b.mode for b in BLOCKS}
+    assert all(b.mode in modes for b in BLOCKS), BLOCKS
 
 
 @pytest.mark.parametrize("block", BLOCKS, ids=[b.id for b in BLOCKS])
@@ -88,7 +93,6 @@ def test_plain_blocks_run(block: Block, tmp_path: Path, monkeypatch) -> None:
 
 def test_readme_plugin_block_is_a_working_plugin(tmp_path: Path) -> None:
     from gymprecice.plugins import solver_kinds, temporary_plugin
-    from gymprecice.testing.conformance import make_solver_context
 
     module = types.ModuleType("my_plugin")
     module.__dict__.update(_run(_only("plugin")))
@@ -102,6 +106,111 @@ def test_readme_plugin_block_is_a_working_plugin(tmp_path: Path) -> None:
         assert not (solver.run_dir / "output.dat").exists()
         spec = pm.hook.gymprecice_launch_solver(solver=solver)
         assert list(spec.argv) == ["mysolver", "case.cfg"] and spec.cwd == solver.run_dir
+
+
+def _import_block(mode: str, module: str, where: Path, monkeypatch) -> types.ModuleType:
+    """The block, written to ``<module>.py`` and imported from there as a plugin would be."""
+    (where / f"{module}.py").write_text(_only(mode).code)
+    monkeypatch.syspath_prepend(str(where))
+    sys.modules.pop(module, None)
+    return importlib.import_module(module)
+
+
+class TestReadmePluginConformance(SolverPluginConformance):
+    """The README's plugin, exactly as printed, passes the suite a plugin package runs.
+
+    Only the entry point is not checked, since the README's ``pyproject.toml`` is not
+    installed here.
+    """
+
+    requires_entry_point = False
+
+    @pytest.fixture
+    def plugin(self, tmp_path_factory: pytest.TempPathFactory, monkeypatch) -> types.ModuleType:
+        where = tmp_path_factory.mktemp("readme-plugin")
+        yield _import_block("plugin", "my_plugin", where, monkeypatch)
+        sys.modules.pop("my_plugin", None)
+
+    @pytest.fixture
+    def kind(self) -> str:
+        return "mysolver"
+
+    @pytest.fixture
+    def make_solver(self, kind: str):
+        def make(base: Path):
+            source = base / "case" / "solver"
+            source.mkdir(parents=True)
+            (source / "case.cfg").write_text("steps = 10\n")
+            return make_solver_context(kind, source, base)
+
+        return make
+
+
+class TestPluginGuideConformance(SolverPluginConformance):
+    """docs/writing-a-plugin.md's plugin, as printed, passes the suite."""
+
+    requires_entry_point = False
+
+    @pytest.fixture
+    def plugin(self, tmp_path_factory: pytest.TempPathFactory, monkeypatch) -> types.ModuleType:
+        where = tmp_path_factory.mktemp("guide-plugin")
+        yield _import_block("plugin-guide", "my_solver_plugin", where, monkeypatch)
+        sys.modules.pop("my_solver_plugin", None)
+
+    @pytest.fixture
+    def kind(self) -> str:
+        return "mysolver"
+
+    @pytest.fixture
+    def make_solver(self, kind: str):
+        def make(base: Path):
+            source = base / "case" / "rod"
+            source.mkdir(parents=True)
+            (source / "case.cfg").write_text("participant = Rod\n")
+            return make_solver_context(kind, source, base, name="rod", participant="Rod")
+
+        return make
+
+    def test_its_reader_follows_the_reader_conventions(self, plugin, solver) -> None:
+        from gymprecice.solver import WaitableOutputReader
+
+        reader = plugin.gymprecice_open_output(solver=solver, name="temperature", options={})
+        assert isinstance(reader, WaitableOutputReader)
+        assert reader.read_new().shape == (0, 2) and reader.latest_time is None
+        (solver.run_dir / "temperature.dat").write_text("0.1 300.5\n0.2 301.0\n0.3 30")
+        rows = reader.wait_until(0.2, timeout=5)
+        assert rows.tolist() == [[0.1, 300.5], [0.2, 301.0]] and reader.latest_time == 0.2
+        with pytest.raises(TimeoutError, match=r"temperature\.dat: no row for t=0\.3"):
+            reader.wait_until(0.3, timeout=0)  # the last line is not complete yet
+
+    def test_it_finds_what_validation_is_for(self, plugin, solver, tmp_path: Path) -> None:
+        from gymprecice.testing import case_config, validation_context
+
+        solver.options["cgf"] = "case.cfg"
+        xml = case_config("fake_cylinder", tmp_path / "xml")  # participants Controller, Fluid
+        problems = plugin.gymprecice_validate_case(solver=validation_context(solver, xml))
+        assert "'cgf' (did you mean 'cfg'?)" in problems[0]
+        assert (
+            "participant 'Rod' is not in" in problems[1]
+            and "['Controller', 'Fluid']" in problems[1]
+        )
+
+
+def test_readme_plugin_runs_in_an_env_without_a_prepare_hook(tmp_path: Path) -> None:
+    """The README's plugin has no prepare hook: core's copy of the case is its preparation."""
+    from gymprecice import lifecycle
+    from gymprecice.plugins import temporary_plugin
+
+    module = types.ModuleType("my_plugin")
+    module.__dict__.update(_run(_only("plugin")))
+    assert not hasattr(module, "gymprecice_prepare_case")  # the point of this test
+    with temporary_plugin(module, "my_plugin") as pm:
+        source = tmp_path / "case"
+        source.mkdir()
+        solver = make_solver_context("mysolver", source, tmp_path)
+        assert lifecycle.prepare_case(pm.hook, solver) is False  # nothing beyond the copy
+        lifecycle.reset_case(pm.hook, solver)
+        assert lifecycle.launch_spec(pm.hook, solver).log_name == "mysolver.log"
 
 
 def _jet_geometry_plugin(spec) -> types.ModuleType:

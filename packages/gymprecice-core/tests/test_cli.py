@@ -123,6 +123,23 @@ def test_check_unknown_kind_fails_with_installed_kinds(capsys, tmp_path, make_ca
     assert "openfoam-typo" in err and "'command'" in err and "'script'" in err
 
 
+def test_check_shows_the_import_error_of_a_broken_plugin(
+    capsys, tmp_path, make_case, base_config, monkeypatch
+) -> None:
+    from gymprecice import cli
+    from gymprecice.plugins import PluginFailure
+
+    broken = PluginFailure("rod", "gymprecice-rod", "0.1", "cannot import 'rod': SyntaxError")
+    monkeypatch.setattr(cli, "plugin_failures", lambda: [broken])
+    config = base_config()
+    config["physics_simulation_engine"]["solvers"]["fluid"]["kind"] = "rod"
+    case = make_case(tmp_path / "case", config)
+    status, _, err = run(capsys, "check", str(case))
+    assert status == 1
+    assert "'rod' (from gymprecice-rod 0.1): cannot import 'rod': SyntaxError" in err
+    assert "pip install" not in err
+
+
 def test_check_bad_case_fails(capsys, tmp_path, make_case, base_config) -> None:
     config = base_config(controller={"participant": "Controller", "write_to": {"jet9": "Velocity"}})
     case = make_case(tmp_path / "case", config)

@@ -175,3 +175,39 @@ def test_misspelled_core_option_fails_at_load_naming_the_file(case_dir: Path) ->
         load_config(case_dir)
     assert str(path) in str(info.value)
     assert "'reset_timout' (did you mean 'reset_timeout'?)" in str(info.value)
+    # a problem of gymprecice-config.json, not a disagreement with the preCICE file
+    assert "does not agree with" not in str(info.value)
+    assert "has problems in its case" in str(info.value)
+
+
+def test_a_problem_against_the_precice_file_says_so(case_dir: Path) -> None:
+    from gymprecice.hookspecs import hookimpl
+    from gymprecice.plugins import temporary_plugin
+
+    class MeshNames:
+        @hookimpl
+        def gymprecice_validate_case(self, solver):
+            if solver.kind != "command":
+                return None
+            xml = solver.precice_config_file
+            return [f"case.cfg: mesh 'Rod-Mesh' is not in {xml}; use one of its meshes"]
+
+    agree = r"does not agree with .*precice-config.xml:\n"
+    with temporary_plugin(MeshNames(), "mesh-names"), pytest.raises(ConfigError, match=agree):
+        load_config(case_dir)
+
+
+def test_a_kind_of_a_plugin_that_failed_to_load_shows_its_import_error(case_dir: Path) -> None:
+    """Installed but broken is not missing: `pip install` would change nothing."""
+    from gymprecice.plugins import PluginFailure
+
+    cfg = load_config(case_dir)
+    cfg.solvers["fluid"].kind = "rod"
+    broken = PluginFailure(
+        "rod", "gymprecice-rod", "0.1", "cannot import 'rod_plugin': ModuleNotFoundError: numba"
+    )
+    with pytest.raises(ConfigError) as info:
+        check_solver_kinds(cfg, {"command": "argv"}, [broken])
+    message = str(info.value)
+    assert "'rod' (from gymprecice-rod 0.1): cannot import 'rod_plugin'" in message
+    assert "ModuleNotFoundError: numba" in message and "pip install" not in message

@@ -233,3 +233,12 @@ def test_readers_match_a_real_run_read_while_it_writes(foam, run, cylinder_case)
     table = _full_table(case / "postProcessing" / "forceCoeffs" / "0" / "coefficient.dat")
     np.testing.assert_array_equal(c.values, table[:, 1:])
     assert c.column("Cd")[-1] > 0  # flow from the left pushes the cylinder downstream
+
+
+def test_the_readers_follow_cores_reader_conventions(tmp_path: Path) -> None:
+    """``start_time``, ``latest_time`` and ``wait_until``: what env code relies on."""
+    from gymprecice.solver import WaitableOutputReader
+
+    reader = outputs.TableReader(tmp_path / "postProcessing" / "forces", ["force.dat"])
+    assert isinstance(reader, WaitableOutputReader)
+    assert reader.start_time is None and reader.latest_time is None

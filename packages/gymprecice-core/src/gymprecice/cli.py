@@ -165,7 +165,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     try:
         config = load_config(args.case)
         kinds = solver_kinds()
-        check_solver_kinds(config, kinds)
+        check_solver_kinds(config, kinds, plugin_failures())
     except GymPreciceError as exc:
         if args.json:
             print(json.dumps({"ok": False, "error": str(exc)}, indent=2))

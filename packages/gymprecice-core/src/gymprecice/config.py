@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import difflib
 import json
-from collections.abc import Mapping
+import os
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -168,6 +169,14 @@ class GymPreciceConfig:
     def time_window_size(self) -> float | None:
         return self.precice.time_window_size(self.participant)
 
+    @property
+    def precice_library(self) -> str:
+        """The module the env imports as ``precice``: ``GYMPRECICE_PRECICE_LIBRARY``, else
+        ``precice.library`` of the configuration."""
+        from gymprecice.solver import LIBRARY_ENV_VAR
+
+        return os.environ.get(LIBRARY_ENV_VAR) or self.model.precice.library
+
     def where(self) -> str:
         return str(self.file) if self.file else f"<config dict for {self.case_dir}>"
 
@@ -259,19 +268,34 @@ def check_solver_cases(config: GymPreciceConfig) -> None:
             config_file=config.file,
             precice=config.precice,
             precice_config_file=config.precice_file,
+            precice_library=config.precice_library,
         )
         problems = [
             p for answer in hook.gymprecice_validate_case(solver=context) for p in answer or ()
         ]
         if problems:
+            # Only problems that name the preCICE file are disagreements with it; an
+            # unknown option or a missing script is a problem of the case, said as such.
+            about_precice = [p for p in problems if config.precice_file.name in p]
+            if len(about_precice) == len(problems):
+                what = f"does not agree with {config.precice_file}"
+            else:
+                what = "has problems in its case (each names the file at fault)"
             raise ConfigError(
-                f"{config.where()}: solver {spec.name!r} ({spec.kind}) does not agree with "
-                f"{config.precice_file}:\n  " + "\n  ".join(problems)
+                f"{config.where()}: solver {spec.name!r} ({spec.kind}) {what}:\n  "
+                + "\n  ".join(problems)
             )
 
 
-def check_solver_kinds(config: GymPreciceConfig, kinds: Mapping[str, Any]) -> None:
-    """Fail when a solver's ``kind`` has no installed plugin, saying what to install."""
+def check_solver_kinds(
+    config: GymPreciceConfig, kinds: Mapping[str, Any], failures: Sequence[Any] = ()
+) -> None:
+    """Fail when a solver's ``kind`` has no installed plugin, saying what to install.
+
+    ``failures`` are the installed plugins that could not be loaded
+    (:func:`gymprecice.plugins.plugin_failures`): when there are any, the kind may well be
+    one of theirs, and their import error, not ``pip install``, is what to fix.
+    """
     for solver in config.solvers.values():
         if solver.kind in kinds:
             continue
@@ -279,6 +303,18 @@ def check_solver_kinds(config: GymPreciceConfig, kinds: Mapping[str, Any]) -> No
         close = difflib.get_close_matches(solver.kind, list(kinds), n=1)
         if close:  # a typo of an installed kind, not a missing plugin
             fix = f"did you mean {close[0]!r}? Set {key} to {close[0]!r}."
+        elif failures:
+            broken = "; ".join(
+                f"{f.name!r}"
+                + (f" (from {f.distribution} {f.version})" if f.distribution else "")
+                + f": {f.error}"
+                for f in failures
+            )
+            fix = (
+                f"An installed plugin that could not be loaded may handle it: {broken}. Fix "
+                "that error (`gymprecice plugins` lists the failures) rather than installing "
+                "anything."
+            )
         else:
             fix = (
                 f"Install the plugin (e.g. `pip install gymprecice-{solver.kind}`) or fix the kind."

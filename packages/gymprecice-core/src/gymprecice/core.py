@@ -22,6 +22,7 @@ is refused with the method's name and the step, never handed to the learner.
 from __future__ import annotations
 
 import atexit
+import dataclasses
 import logging
 import math
 import os
@@ -36,6 +37,7 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 import numpy as np
 
+from gymprecice import lifecycle
 from gymprecice.actions import ActionSchedule
 from gymprecice.config import (
     GymPreciceConfig,
@@ -46,7 +48,6 @@ from gymprecice.config import (
 from gymprecice.coupling import CouplingSession, CouplingState, WorkerProcess
 from gymprecice.divergence import HARD_FAULT_STATUSES, Divergence, checked_penalty
 from gymprecice.errors import (
-    CaseError,
     ConfigError,
     CouplingError,
     SolverDivergedError,
@@ -54,7 +55,8 @@ from gymprecice.errors import (
     SolverTimeoutError,
 )
 from gymprecice.pidregistry import kill_recorded_groups
-from gymprecice.plugins import get_plugin_manager, solver_kinds
+from gymprecice.plugins import get_plugin_manager, plugin_failures, solver_kinds
+from gymprecice.precice_library import mixed_library_problem
 from gymprecice.processes import PidRegistry, SolverProcess
 from gymprecice.rundir import (
     EnvIndexClaim,
@@ -63,11 +65,10 @@ from gymprecice.rundir import (
     create_run_directory,
     env_root,
 )
-from gymprecice.solver import InterfaceGeometry, OutputReader, SolverContext
+from gymprecice.solver import LIBRARY_ENV_VAR, InterfaceGeometry, OutputReader, SolverContext
 
 __all__ = ["Adapter", "DataDict", "DataRef", "Timing"]
 
-LIBRARY_ENV_VAR = "GYMPRECICE_PRECICE_LIBRARY"
 #: seconds between two looks at the solvers while an env waits for a solver's output file
 OUTPUT_WAIT_SLICE_S = 0.5
 
@@ -109,9 +110,10 @@ class DataDict(dict):
 class Timing(Mapping[str, float]):
     """Seconds spent in one step or reset: ``precice_s``, ``wait_s``, ``env_s``, ``step_s``.
 
-    ``wait_s`` is the time spent waiting for the solvers: in preCICE, and in the
-    ``wait_until`` of readers from :meth:`Adapter.open_output`; ``env_s`` the rest of the
-    env's own code. Read it like a dict. Two timings compare equal when they measure the same things:
+    ``wait_s`` is the time spent waiting for the solvers: in preCICE, in the
+    ``wait_until`` of readers from :meth:`Adapter.open_output`, and on an episode's last
+    step in finalizing and letting the solvers exit; ``env_s`` the rest of the env's own
+    code, so ``wait_s + env_s`` accounts for ``step_s`` but for a few bookkeeping lines. Read it like a dict. Two timings compare equal when they measure the same things:
     wall-clock figures describe the machine, not the environment's state, so Gymnasium's
     determinism check (which compares the infos of two identical steps) must not see them.
     """
@@ -201,8 +203,13 @@ class _TimedReader:
         self._alive = alive
 
     def wait_until(self, time_: float, timeout: float, *args: Any, **kwargs: Any) -> Any:
+        wait = getattr(self._reader, "wait_until", None)
+        if wait is None:
+            raise AttributeError(
+                f"{type(self._reader).__name__} has no wait_until: the plugin's reader does not "
+                "follow gymprecice.solver.WaitableOutputReader; poll read_new() instead"
+            )
         started = time.perf_counter()
-        wait = self._reader.wait_until  # type: ignore[attr-defined]
         try:
             if self._alive is None:
                 return wait(time_, timeout, *args, **kwargs)
@@ -249,7 +256,7 @@ class Adapter(gym.Env):
                 "directory holding it), or the parsed dict"
             )
         self.config: GymPreciceConfig = load_config(options, case_dir=case_dir)
-        check_solver_kinds(self.config, solver_kinds())
+        check_solver_kinds(self.config, solver_kinds(), plugin_failures())
         configured = self.config.model.environment.divergence_penalty
         self._divergence_penalty = checked_penalty(
             type(self).divergence_penalty if configured is None else configured,
@@ -464,9 +471,9 @@ class Adapter(gym.Env):
                 config_file=self.config.file,
                 precice=self.config.precice,
                 precice_config_file=self._run.precice_config_file,
+                precice_library=self._library(),
             )
-            if not self._hook.gymprecice_prepare_case(solver=ctx):
-                raise CaseError(f"{ctx.describe()}: no installed plugin prepares this kind")
+            lifecycle.prepare_case(self._hook, ctx)
             self._solvers[spec.name] = ctx
 
     # -- Gymnasium API ---------------------------------------------------------------------
@@ -509,12 +516,14 @@ class Adapter(gym.Env):
             for ctx in self._solvers.values():
                 ctx.rng = np.random.default_rng(episode_seed)
                 ctx.reset_options = dict(options or {})
-                if not self._hook.gymprecice_reset_case(solver=ctx):
-                    raise CaseError(f"{ctx.describe()}: no installed plugin resets this kind")
+                lifecycle.reset_case(self._hook, ctx)
             for ctx in self._solvers.values():
-                spec = self._hook.gymprecice_launch_solver(solver=ctx)
-                if spec is None:
-                    raise CaseError(f"{ctx.describe()}: no installed plugin launches this kind")
+                spec = lifecycle.launch_spec(self._hook, ctx)
+                # The solver's own preCICE bindings must be the env's (a Python solver reads
+                # this); a plugin that sets the variable itself keeps its value.
+                spec = dataclasses.replace(
+                    spec, env={LIBRARY_ENV_VAR: ctx.precice_library, **dict(spec.env)}
+                )
                 session.solvers.append(
                     SolverProcess.start(ctx.name, spec, env_index=self.env_index, registry=registry)
                 )
@@ -592,7 +601,11 @@ class Adapter(gym.Env):
         wait_s += output_wait  # waiting for a solver's files is waiting for the solver
         env_s += time.perf_counter() - after - output_wait
         if terminated or truncated:
+            # Finalizing and waiting for the solvers to exit is waiting for the solvers
+            # (tens of ms on the last step); without this it would fall in no bucket.
+            finishing = time.perf_counter()
             self._end_episode(abort=terminated and state.ongoing)
+            wait_s += time.perf_counter() - finishing
             self._episode_over = True
         info = self._info(
             state,
@@ -639,7 +652,7 @@ class Adapter(gym.Env):
 
     # -- internals -------------------------------------------------------------------------
     def _library(self) -> str:
-        return os.environ.get(LIBRARY_ENV_VAR) or self.config.model.precice.library
+        return self.config.precice_library
 
     def _init_request(self, initial: dict[tuple[str, str], np.ndarray]) -> dict[str, Any]:
         assert self._run is not None
@@ -862,10 +875,24 @@ class Adapter(gym.Env):
             self._session.ensure_solvers_running("output")
 
     def _health_check(self, process: SolverProcess) -> str | None:
+        """What is wrong with a waiting or exited solver: core's own check, then the plugin's.
+
+        Core checks that the solver runs the env's preCICE library (a mixed set-up waits
+        forever); the plugin's diagnosis comes without the solver's name.
+
+        Core's error message names the solver and the env already; a plugin that starts
+        its message with ``solver.describe()`` (as the hook spec once showed) would have
+        it twice.
+        """
         ctx = self._solvers.get(process.name)
         if ctx is None:
             return None
-        return self._hook.gymprecice_check_solver(solver=ctx, log_text=process.log_tail(200))
+        log_text = process.log_tail(200)
+        mixed = mixed_library_problem(ctx.precice_library, log_text)
+        if mixed:
+            return mixed
+        problem = self._hook.gymprecice_check_solver(solver=ctx, log_text=log_text)
+        return _without_label(problem, ctx.describe()) if problem else None
 
     def _end_episode(self, *, abort: bool) -> None:
         """Kill (or finish) the running session; it stays reachable until it is dead.
@@ -941,6 +968,13 @@ def _refuse_non_finite(value: Any, method: str, env_index: int, step: int) -> No
                 "it was not passed to the learner. Check the solver output it reads (a "
                 "diverging solver belongs in its plugin's gymprecice_detect_divergence)"
             )
+
+
+def _without_label(message: str, label: str) -> str:
+    """``message`` without a leading ``label`` (and the colon after it)."""
+    if message.startswith(label):
+        return message[len(label) :].lstrip(" :") or message
+    return message
 
 
 def _fit_dimensions(geometry: InterfaceGeometry, dimensions: int) -> InterfaceGeometry:

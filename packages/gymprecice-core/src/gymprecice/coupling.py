@@ -289,7 +289,7 @@ class CouplingSession:
                 if status != 0
                 else "exited while the coupling was still running"
             )
-            self._fail(SolverCrashedError, solver, what, op)
+            self._fail(SolverCrashedError, solver, what + self._diagnosis(solver), op)
 
     # -- the watchdog ---------------------------------------------------------------------
     @staticmethod
@@ -326,16 +326,13 @@ class CouplingSession:
             for solver in [s for s in self.solvers if s in ready]:
                 watched.remove(solver)
                 if solver.poll() not in (0, None):
-                    self._fail(SolverCrashedError, solver, describe_returncode(solver.poll()), op)
+                    what = describe_returncode(solver.poll()) + self._diagnosis(solver)
+                    self._fail(SolverCrashedError, solver, what, op)
                 exited_at = exited_at or now
             if exited_at is not None and now - exited_at > EXIT_GRACE_S:
                 done = next(s for s in self.solvers if s.poll() is not None)
-                self._fail(
-                    SolverCrashedError,
-                    done,
-                    "exited (status 0) while the controller was still waiting for it",
-                    op,
-                )
+                what = "exited (status 0) while the controller was still waiting for it"
+                self._fail(SolverCrashedError, done, what + self._diagnosis(done), op)
             sizes = self._log_sizes()
             if sizes != log_sizes:
                 grown = [s for s, a, b in zip(self.solvers, sizes[1:], log_sizes[1:]) if a != b]
@@ -346,7 +343,7 @@ class CouplingSession:
                 for solver in self.solvers:
                     problem = self.health_check(solver)
                     if problem:
-                        self._fail(SolverCrashedError, solver, problem, op)
+                        self._fail(SolverCrashedError, solver, f"has a problem: {problem}", op)
             if now - last_progress > self.progress_timeout:
                 self._fail(
                     SolverTimeoutError,
@@ -390,9 +387,24 @@ class CouplingSession:
                 if status not in (0, None)
                 else "exited while the coupling was still running"
             )
-            self._fail(
-                SolverCrashedError, solver, what + "; the data of this step is discarded", op
-            )
+            what += "; the data of this step is discarded" + self._diagnosis(solver)
+            self._fail(SolverCrashedError, solver, what, op)
+
+    def _diagnosis(self, solver: SolverProcess) -> str:
+        """What the solver's plugin makes of a solver that exited, for the error message.
+
+        The exit status alone ("exited with status 127") rarely says what to fix; the
+        plugin's ``gymprecice_check_solver`` reads the log ("a program the script calls
+        is not on PATH"). A health check that fails itself must not hide the crash.
+        """
+        if self.health_check is None:
+            return ""
+        try:
+            problem = self.health_check(solver)
+        except Exception as exc:
+            log.warning("the health check of solver %r failed: %s", solver.name, exc)
+            return ""
+        return f"; diagnosis: {problem}" if problem else ""
 
     def _watch(self, solvers: Sequence[SolverProcess], op: str) -> None:
         """End the request when a running solver shows divergence (see ``watch``)."""

@@ -52,7 +52,6 @@ This module is loaded on every ``import gymprecice``: it imports nothing heavy a
 
 from __future__ import annotations
 
-import difflib
 import functools
 import os
 import re
@@ -66,6 +65,7 @@ from typing import Any
 from gymprecice.divergence import first_match
 from gymprecice.errors import CaseError, ConfigError
 from gymprecice.hookspecs import hookimpl
+from gymprecice.options import refuse_unknown_options
 from gymprecice.precice_install import core_install_steps
 from gymprecice.solver import DoctorCheck, LaunchSpec, SolverContext
 from gymprecice.stack import InstallStep
@@ -214,7 +214,7 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
         for needle, meaning in _LOG_HINTS:
             if needle in line:
                 return (
-                    f"{solver.describe()}: {meaning}: {line.strip()!r} "
+                    f"{meaning}: {line.strip()!r} "
                     f"(log in {solver.run_dir}); fix the script or the PATH and reset"
                 )
     return None
@@ -271,19 +271,7 @@ def gymprecice_doctor_checks() -> list[DoctorCheck]:
 
 def check_options(solver: SolverContext) -> None:
     """Refuse an option key the kind does not read: ``reset_timout`` must not be ignored."""
-    known = (*OPTIONS[solver.kind], *_FOREIGN_OPTIONS)
-    unknown = sorted(set(solver.options) - set(known))
-    if not unknown:
-        return
-    hints = []
-    for key in unknown:
-        close = difflib.get_close_matches(key, known, n=1)
-        hints.append(f"{key!r} (did you mean {close[0]!r}?)" if close else repr(key))
-    raise ConfigError(
-        f"{_where(solver)}: {solver.describe()}: unknown option(s) {', '.join(hints)} in "
-        f"physics_simulation_engine.solvers.{solver.name}.options; kind {solver.kind!r} "
-        f"knows {list(OPTIONS[solver.kind])}"
-    )
+    refuse_unknown_options(solver, (*OPTIONS[solver.kind], *_FOREIGN_OPTIONS))
 
 
 # -- kind "script" ---------------------------------------------------------------------------

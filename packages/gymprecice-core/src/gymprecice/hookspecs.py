@@ -11,9 +11,15 @@ functions marked ``@hookimpl`` whose names match the specs below::
         return {"mysolver": "My preCICE-enabled solver"}
 
     @hookimpl
-    def gymprecice_launch_solver(solver):
+    def gymprecice_reset_case(solver):
         if solver.kind != "mysolver":
             return None          # not mine: let another plugin answer
+        return True
+
+    @hookimpl
+    def gymprecice_launch_solver(solver):
+        if solver.kind != "mysolver":
+            return None
         return LaunchSpec(argv=["mysolver", "case.cfg"], cwd=solver.run_dir)
 
 and, in its ``pyproject.toml``::
@@ -21,10 +27,34 @@ and, in its ``pyproject.toml``::
     [project.entry-points.gymprecice]
     mysolver = "my_solver_plugin"
 
-Hooks that act on one solver are ``firstresult``: each plugin checks ``solver.kind`` and
-returns ``None`` for solvers it does not handle, so the first plugin that knows the kind
-answers. Core never names a solver; plugins never touch preCICE: core owns the coupling
+A plugin needs ``gymprecice_solver_kinds``, ``gymprecice_reset_case`` and
+``gymprecice_launch_solver``; every other hook is optional and has a default, stated in
+its spec. Core never names a solver; plugins never touch preCICE: core owns the coupling
 and every process, plugins only prepare files and describe what to run.
+
+**What ``None`` means.** Every hook asked about one solver starts with ``if solver.kind
+!= KIND: return None``, and for every one of them ``None`` means exactly one thing: *this
+plugin gives no answer for this solver*. Core then asks the next plugin, and when none
+answers applies the hook's default (its spec says which). Whether the plugin stayed silent
+because the kind is not its own or because it has nothing to add makes no difference to
+core, so the two need no separate value. A *failure* is never ``None``: raise
+:class:`~gymprecice.errors.CaseError` (a case file is wrong) or
+:class:`~gymprecice.errors.ConfigError` (an option is wrong), naming the file and the fix.
+The conformance suite (:mod:`gymprecice.testing.conformance`) checks each hook's
+``None`` for a foreign kind.
+
+**Where errors surface.** An exception raised in a hook reaches the user unchanged, from
+the call that ran the hook: ``gymprecice_validate_case`` from ``Adapter(...)`` and
+``gymprecice check``; ``gymprecice_prepare_case`` from the first ``reset()`` (or
+``env.run_dir``); ``gymprecice_reset_case``, ``gymprecice_launch_solver`` and
+``gymprecice_check_solver`` from ``reset()``; ``gymprecice_detect_divergence`` from
+``reset()`` and ``step()``; ``gymprecice_interface_geometry`` from the first
+``reset()`` (or ``env.interface_geometry``); ``gymprecice_open_output`` from
+``env.open_output`` in the env's own code. A problem *returned* by
+``gymprecice_validate_case`` becomes a ``ConfigError`` naming the configuration file and
+the solver; one returned by ``gymprecice_check_solver`` fails the reset (or joins the
+crash report of an exited solver) as a :class:`~gymprecice.errors.SolverCrashedError`
+that names the solver and the env, so the message itself need not.
 """
 
 from __future__ import annotations
@@ -34,12 +64,16 @@ from typing import Any
 
 import pluggy
 
+from gymprecice.options import refuse_unknown_options, unknown_option_problems
 from gymprecice.solver import (
+    LIBRARY_ENV_VAR,
+    TEST_DOUBLE_LIBRARY,
     DoctorCheck,
     InterfaceGeometry,
     LaunchSpec,
     OutputReader,
     SolverContext,
+    WaitableOutputReader,
 )
 from gymprecice.stack import InstallStep
 
@@ -49,14 +83,19 @@ hookspec = pluggy.HookspecMarker(PROJECT_NAME)
 hookimpl = pluggy.HookimplMarker(PROJECT_NAME)
 
 __all__ = [
+    "LIBRARY_ENV_VAR",
+    "TEST_DOUBLE_LIBRARY",
     "DoctorCheck",
     "InstallStep",
     "InterfaceGeometry",
     "LaunchSpec",
     "OutputReader",
     "SolverContext",
+    "WaitableOutputReader",
     "hookimpl",
     "hookspec",
+    "refuse_unknown_options",
+    "unknown_option_problems",
 ]
 
 
@@ -65,7 +104,8 @@ def gymprecice_solver_kinds() -> Mapping[str, str]:
     """Name the solver kinds this plugin handles, with a one-line description each.
 
     Used to validate ``kind`` in ``gymprecice-config.json`` (an unknown kind is reported
-    with the list of installed ones) and by ``gymprecice plugins``.
+    with the list of installed ones) and by ``gymprecice plugins``. Required: a kind no
+    plugin declares cannot be configured. ``None`` (or an empty dict) declares nothing.
     """
 
 
@@ -74,10 +114,18 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
     """Check the pristine case of a solver against the preCICE configuration; write nothing.
 
     Called when a configuration is loaded (``Adapter(...)``, ``gymprecice check``), before
-    any run directory exists: ``solver.run_dir`` is the pristine case here. Return a list of
-    problems, each naming the file at fault and the fix (an empty list when all is well), or
-    ``None`` for solvers of other kinds. Catches, for example, a solver mesh or data name
-    that the preCICE XML does not define, which would otherwise surface only at run time.
+    any run directory exists: ``solver.run_dir`` and ``solver.source_dir`` are both the
+    pristine case, ``solver.env_dir`` is the case directory, ``solver.precice`` and
+    ``solver.precice_config_file`` the case's own preCICE configuration, and there is no
+    ``rng`` and no ``state``. Catches, for example, a solver mesh or data name that the
+    preCICE XML does not define, or an unknown option (see
+    :func:`~gymprecice.options.unknown_option_problems`), which would otherwise surface
+    only at run time.
+
+    Return, for this plugin's kind, a list of problems, each naming the file at fault and
+    the fix (``[]`` when all is well). ``None`` means "not my kind": an empty list would
+    claim the case was checked. Every plugin is asked (not ``firstresult``); all problems
+    are reported together. Default (no plugin answers): no check.
     """
 
 
@@ -88,8 +136,11 @@ def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     Core has already copied the pristine case into the env's run directory. Typical work:
     generate the mesh, decompose, run an uncoupled pre-run to a developed state, and
     remember in ``solver.state`` what :func:`gymprecice_reset_case` must restore.
-    Return ``True`` when handled, ``None`` when the solver is not this plugin's kind.
-    Raise :class:`gymprecice.errors.CaseError` with the file and the fix on bad input.
+    Return ``True`` when prepared. ``None`` means "no preparation from this plugin" (not
+    its kind, or nothing to do): when no plugin prepares a solver, core's copy of the case
+    is its preparation, so a plugin whose solver needs only its case files may leave this
+    hook out. Raise :class:`gymprecice.errors.CaseError` with the file and the fix on bad
+    input; any other answer (``False``) is refused as a plugin bug.
     """
 
 
@@ -99,7 +150,9 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
 
     Only files under ``run_dir`` may change. ``solver.rng`` is the episode's seeded
     generator (use it for randomised initial states) and ``solver.reset_options`` holds the
-    ``options`` given to ``env.reset``. Return ``True`` when handled.
+    ``options`` given to ``env.reset``. Return ``True`` when reset (also when the solver
+    needs nothing reset). ``None`` means "not my kind". Required: when no plugin returns
+    ``True``, the reset fails with a :class:`~gymprecice.errors.CaseError` naming this hook.
     """
 
 
@@ -108,18 +161,28 @@ def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
     """Describe how to start the coupled solver for one episode.
 
     Core starts the returned command in its own process group with its output in a log
-    file, watches it, and kills the whole group when the episode ends or fails.
+    file, watches it, and kills the whole group when the episode ends or fails. Core adds
+    ``GYMPRECICE_PRECICE_LIBRARY`` (``solver.precice_library``) to its environment unless
+    ``LaunchSpec.env`` sets it: a Python solver imports that module as ``precice``, so it
+    couples through the same library as the env. Return a
+    :class:`~gymprecice.solver.LaunchSpec`; ``None`` means "not my kind". Required: when
+    no plugin answers, the reset fails with a :class:`~gymprecice.errors.CaseError`.
     """
 
 
 @hookspec(firstresult=True)
 def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
-    """Look at a running or failed solver and say what is wrong, or ``None`` if nothing.
+    """Look at a waiting or exited solver and say what is wrong, or ``None`` if nothing.
 
-    Called while core waits for the solver at reset and when it has failed; ``log_text`` is
-    the tail of the solver's log. Use it for problems that would otherwise hang the
-    coupling, such as a solver that runs uncoupled because its preCICE adapter did not
-    load. The message should name the file and the fix.
+    Called about once a second while core waits for the solver at reset, and once when a
+    solver has exited during a reset or a step; ``log_text`` is the tail of the solver's
+    log. Use it for problems that would otherwise hang the coupling (a solver that runs
+    uncoupled because its preCICE adapter did not load) and to explain an exit status
+    (``127``: a program not on ``PATH``). Return one message naming the file and the fix;
+    core prefixes the solver and the env, so do not start with ``solver.describe()``. A
+    message while the solver waits fails the reset; one about an exited solver is added to
+    its crash report as ``diagnosis:``. ``None`` means "nothing to report" (a healthy log,
+    or not my kind); an ordinary log must get ``None``.
     """
 
 
@@ -155,8 +218,11 @@ def gymprecice_interface_geometry(
     """Give the vertices of a controller interface that couples to this solver.
 
     ``mesh`` is the solver participant's own preCICE mesh that the controller's
-    ``interface`` mesh is mapped to (taken from the preCICE configuration). Return ``None``
-    when this plugin does not know the mesh. A user can still set coordinates by hand.
+    ``interface`` mesh is mapped to (taken from the preCICE configuration). Called after
+    preparation, on the env's copy of the case. Return an
+    :class:`~gymprecice.solver.InterfaceGeometry` (3-D coordinates of a 2-D case are cut to
+    x, y by core). ``None`` means "I do not know this mesh" (or not my kind); when no
+    plugin knows it, the env must call ``set_interface_vertices`` and the error says so.
     """
 
 
@@ -167,13 +233,23 @@ def gymprecice_open_output(
     """Open an incremental reader of one solver output (e.g. ``"probes"``, ``"forces"``).
 
     Environments call ``self.open_output(solver_name, name, **options)``; core closes the
-    readers at every reset and at close.
+    readers at every reset and at close. Return an
+    :class:`~gymprecice.solver.OutputReader`, preferably a
+    :class:`~gymprecice.solver.WaitableOutputReader` (``start_time``, ``latest_time``,
+    ``wait_until``), which env code relies on. For this plugin's kind, raise
+    :class:`~gymprecice.errors.ConfigError` listing the outputs and options it knows when
+    ``name`` or ``options`` is unknown. ``None`` means "not my solver"; when no plugin
+    answers, ``open_output`` raises a ``ConfigError``.
     """
 
 
 @hookspec
 def gymprecice_doctor_checks() -> list[DoctorCheck]:
-    """Report what this plugin needs and whether the machine has it (``gymprecice doctor``)."""
+    """Report what this plugin needs and whether the machine has it (``gymprecice doctor``).
+
+    Return a list of :class:`~gymprecice.solver.DoctorCheck`; a failed one needs
+    ``advice``. ``None`` or ``[]``: nothing to check.
+    """
 
 
 @hookspec

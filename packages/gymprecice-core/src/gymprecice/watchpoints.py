@@ -115,6 +115,10 @@ class WatchPointLog:
     new episode in the same directory) is read again from its start.
     """
 
+    #: preCICE's watch-point log counts time from 0 in every run (see
+    #: :class:`~gymprecice.solver.WaitableOutputReader`)
+    start_time: float | None = 0.0
+
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.columns: list[str] | None = None

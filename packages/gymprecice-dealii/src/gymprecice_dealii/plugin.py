@@ -188,7 +188,7 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
     prm = solver.run_dir / _parameters_name(solver)
     for needle, advice in _LOG_HINTS:
         if needle in log_text:
-            return f"{solver.describe()}: {advice.format(prm=prm)}"
+            return advice.format(prm=prm)
     return None
 
 

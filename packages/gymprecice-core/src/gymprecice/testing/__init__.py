@@ -8,7 +8,9 @@ let every test couple real processes anyway:
   partner died blocks forever instead of raising). Select it with
   ``"precice": {"library": "gymprecice.testing.fake_precice"}`` in gymprecice-config.json
   or ``GYMPRECICE_PRECICE_LIBRARY=gymprecice.testing.fake_precice``. Every participant of a
-  run must use the same library. Where real preCICE kills the process on a misuse (abort or
+  run must use the same library: core exports the env's as ``GYMPRECICE_PRECICE_LIBRARY`` to
+  every solver it launches (``SolverContext.precice_library`` tells the plugin), and reports
+  at reset a solver whose log shows the other one. Where real preCICE kills the process on a misuse (abort or
   segmentation fault), the double raises ``PreciceError`` unless
   ``GYMPRECICE_FAKE_PRECICE_MISUSE=crash`` asks it to die the same way.
   ``tests/test_real_precice.py`` runs the same scenarios against both libraries.
@@ -50,6 +52,10 @@ A solver of kind ``command`` runs a partner with the argv from :func:`partner_co
     argv = partner_command(config, "Fluid", crash_at_window=3, write_outputs=".")
     # [sys.executable, "-m", "gymprecice.testing.partner", "--config", ..., ...]
 
+:func:`make_solver_context` builds the :class:`~gymprecice.solver.SolverContext` core would
+hand a plugin's hooks in an env (:func:`validation_context`: the one validation gets), for a
+plugin's own tests; :mod:`gymprecice.testing.conformance` is the suite every plugin runs.
+
 This package's ``__init__`` stays import-light: ``python -m gymprecice.testing.partner``
 passes through it.
 """
@@ -61,7 +67,23 @@ import re
 from pathlib import Path
 from typing import Any
 
-__all__ = ["CASES_DIR", "case_config", "partner_command"]
+__all__ = [
+    "CASES_DIR",
+    "case_config",
+    "make_solver_context",
+    "partner_command",
+    "validation_context",
+]
+
+
+def __getattr__(name: str) -> Any:
+    """``make_solver_context`` and ``validation_context``, imported on first use."""
+    if name in ("make_solver_context", "validation_context"):
+        from gymprecice.testing import contexts
+
+        return getattr(contexts, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 #: The ready preCICE configurations (package data).
 CASES_DIR = Path(__file__).resolve().parent / "cases"

@@ -45,7 +45,6 @@ import hashlib
 import importlib.metadata
 import json
 import os
-import shutil
 import subprocess
 import sys
 import warnings
@@ -57,20 +56,24 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gymprecice import hookspecs
+from gymprecice import hookspecs, lifecycle
 from gymprecice.plugins import (
     DISABLE_ENV_VAR,
     ENTRY_POINT_GROUP,
     GymPrecicePluginManager,
     PluginWarning,
 )
-from gymprecice.solver import DoctorCheck, LaunchSpec, SolverContext
+from gymprecice.solver import DoctorCheck, InterfaceGeometry, SolverContext
+from gymprecice.testing.contexts import make_solver_context, validation_context
 
 __all__ = [
     "FIRSTRESULT_HOOKS",
+    "PER_SOLVER_HOOKS",
+    "ConformanceError",
     "SolverPluginConformance",
     "make_solver_context",
     "tree_snapshot",
+    "validation_context",
 ]
 
 #: The hooks that act on one solver; each must answer ``None`` for a foreign kind.
@@ -84,40 +87,33 @@ FIRSTRESULT_HOOKS: tuple[str, ...] = tuple(
     )
 )
 
+#: Every hook that is asked about one solver: each answers ``None`` for a foreign kind.
+PER_SOLVER_HOOKS: tuple[str, ...] = tuple(sorted({*FIRSTRESULT_HOOKS, "gymprecice_validate_case"}))
+
+
+class ConformanceError(AssertionError):
+    """A plugin breaks a rule of the hook contract; the message says which and how to fix it.
+
+    An ``AssertionError`` (pytest reports it as a failure), but never a bare one: pytest
+    does not rewrite the asserts of an installed module, so each check states its hook,
+    what was expected, what came back, and the fix.
+    """
+
+    def __init__(self, hook: str, expected: str, got: str, fix: str) -> None:
+        self.hook = hook
+        self.expected = expected
+        self.got = got
+        self.fix = fix
+        super().__init__(f"{hook}: expected {expected}; got {got or 'nothing'}. Fix: {fix}")
+
+
+def _require(ok: bool, hook: str, expected: str, got: str, fix: str) -> None:
+    if not ok:
+        raise ConformanceError(hook, expected, got, fix)
+
+
 #: Core's own bookkeeping directory inside an env directory (pid registry, worker log).
 _CORE_STATE_DIR = ".gymprecice"
-
-
-def make_solver_context(
-    kind: str,
-    source_dir: Path,
-    base: Path,
-    *,
-    name: str = "solver",
-    options: dict[str, Any] | None = None,
-    participant: str | None = None,
-    env_index: int = 0,
-    seed: int = 0,
-) -> SolverContext:
-    """Copy ``source_dir`` into ``base/env_<index>/<name>`` and describe it as core would.
-
-    The copy is real (no symlinks into the pristine case), like each env's run directory.
-    """
-    source_dir = Path(source_dir)
-    env_dir = Path(base) / f"env_{env_index}"
-    run_dir = env_dir / name
-    shutil.copytree(source_dir, run_dir, symlinks=True)
-    return SolverContext(
-        name=name,
-        kind=kind,
-        run_dir=run_dir,
-        source_dir=source_dir,
-        env_dir=env_dir,
-        env_index=env_index,
-        participant=participant,
-        options=dict(options or {}),
-        rng=np.random.default_rng(seed),
-    )
 
 
 def tree_snapshot(root: Path, exclude: Iterable[Path] = ()) -> dict[str, tuple[str, int]]:
@@ -218,16 +214,36 @@ class SolverPluginConformance:
     def manager(self, plugin: Any) -> GymPrecicePluginManager:
         """A manager holding only this plugin: other installed plugins cannot answer for it."""
         pm = GymPrecicePluginManager()
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", PluginWarning)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PluginWarning)
             pm.register(plugin, name="under-test")
+        problems = [str(w.message) for w in caught if issubclass(w.category, PluginWarning)]
+        _require(
+            not problems,
+            "registration",
+            "the plugin to register without warnings",
+            "; ".join(problems),
+            "rename each @hookimpl function to the gymprecice hook it implements",
+        )
         return pm
 
     @pytest.fixture
     def solver(self, make_solver: Callable[[Path], SolverContext], tmp_path: Path) -> SolverContext:
         ctx = make_solver(tmp_path)
-        assert isinstance(ctx, SolverContext), "make_solver must return a SolverContext"
-        assert ctx.run_dir.is_dir(), f"make_solver must create the run directory {ctx.run_dir}"
+        _require(
+            isinstance(ctx, SolverContext),
+            "the make_solver fixture",
+            "a SolverContext",
+            repr(ctx),
+            "return make_solver_context(kind, source_dir, base) from the factory",
+        )
+        _require(
+            ctx.run_dir.is_dir(),
+            "the make_solver fixture",
+            f"the run directory {ctx.run_dir} to exist",
+            "no such directory",
+            "copy the case into it (make_solver_context does)",
+        )
         return ctx
 
     # -- helpers --------------------------------------------------------------------------------
@@ -250,26 +266,55 @@ class SolverPluginConformance:
         spec = getattr(manager.hook, hook).spec
         return {arg: sample[arg] for arg in spec.argnames}
 
+    @staticmethod
+    def _answers(manager: GymPrecicePluginManager, hook: str, kwargs: dict) -> list[Any]:
+        """The plugin's own answer(s), whether or not the hook is ``firstresult``."""
+        caller = getattr(manager.hook, hook)
+        return [impl.function(**kwargs) for impl in caller.get_hookimpls()]
+
     # -- the tests ------------------------------------------------------------------------------
 
     def test_registers_without_unknown_hooks(self, plugin: Any) -> None:
         """Every ``@hookimpl`` matches a spec: a misspelt hook would never be called."""
         pm = GymPrecicePluginManager()
         with warnings.catch_warnings():
-            warnings.simplefilter("error", PluginWarning)
+            warnings.simplefilter("ignore", PluginWarning)
             pm.register(plugin, name="under-test")
         unknown = [c.name for c in pm.get_hookcallers(plugin) or [] if not c.has_spec()]
-        assert not unknown, f"hooks without a gymprecice spec: {unknown}"
+        _require(
+            not unknown,
+            ", ".join(unknown) or "@hookimpl",
+            "every @hookimpl function to be named after a gymprecice hook",
+            f"functions no hook spec knows: {unknown}",
+            "rename them to hooks of gymprecice.hookspecs (`gymprecice plugins` lists them)",
+        )
 
     def test_declares_its_kind(self, manager: GymPrecicePluginManager, kind: str) -> None:
-        declared: dict[str, Any] = {}
+        hook = "gymprecice_solver_kinds"
+        declared: dict[Any, Any] = {}
         for answer in manager.hook.gymprecice_solver_kinds():
             declared.update(answer or {})
-        assert kind in declared, f"gymprecice_solver_kinds() lacks {kind!r}: {declared}"
+        _require(
+            kind in declared,
+            hook,
+            f"a dict with the kind {kind!r}",
+            repr(declared),
+            f'return {{"{kind}": "one line saying what the solver is"}}',
+        )
         for name, description in declared.items():
-            assert isinstance(name, str) and name, f"kind names must be strings: {name!r}"
-            assert isinstance(description, str) and description.strip(), (
-                f"kind {name!r} needs a one-line description"
+            _require(
+                isinstance(name, str) and bool(name),
+                hook,
+                "non-empty strings as kind names",
+                repr(name),
+                "name each kind with the string used as `kind` in gymprecice-config.json",
+            )
+            _require(
+                isinstance(description, str) and bool(description.strip()),
+                hook,
+                f"a one-line description of kind {name!r}",
+                repr(description),
+                "map the kind to a short description (`gymprecice plugins` shows it)",
             )
 
     def test_declared_as_entry_point(self, plugin: Any) -> None:
@@ -281,25 +326,75 @@ class SolverPluginConformance:
             for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
             if ep.value.split(":", 1)[0].strip() == module
         ]
-        assert values, (
-            f"{module} is not declared in the {ENTRY_POINT_GROUP!r} entry-point group; add "
-            f'[project.entry-points.{ENTRY_POINT_GROUP}] <name> = "{module}" to pyproject.toml '
-            "and reinstall the package"
+        _require(
+            bool(values),
+            "the entry point",
+            f"{module} in the {ENTRY_POINT_GROUP!r} entry-point group",
+            "not declared (or the package is not installed)",
+            f'add [project.entry-points.{ENTRY_POINT_GROUP}] <name> = "{module}" to '
+            "pyproject.toml and reinstall the package",
         )
 
-    @pytest.mark.parametrize("hook", FIRSTRESULT_HOOKS)
+    @pytest.mark.parametrize("hook", PER_SOLVER_HOOKS)
     def test_foreign_kind_gets_none(
         self, manager: GymPrecicePluginManager, solver: SolverContext, hook: str
     ) -> None:
-        """Answering for a kind that is not the plugin's would hijack another plugin's solver."""
+        """``None`` is the answer for another plugin's solver, and looking writes nothing.
+
+        Answering for a kind that is not the plugin's would hijack another plugin's
+        solver (``firstresult`` hooks stop at the first answer); an empty list from
+        ``gymprecice_validate_case`` would claim to have checked a case it cannot read.
+        """
         if not self._implemented(manager, hook):
             pytest.skip(f"{hook} is not implemented")
         foreign = dataclasses.replace(solver, kind=self.foreign_kind, state={})
         before = tree_snapshot(solver.env_dir)
-        result = getattr(manager.hook, hook)(**self._call_kwargs(manager, hook, foreign))
-        assert result is None, f"{hook} answered {result!r} for kind {self.foreign_kind!r}"
-        assert not _diff(before, tree_snapshot(solver.env_dir)), (
-            f"{hook} changed files for a solver that is not its kind"
+        answers = self._answers(manager, hook, self._call_kwargs(manager, hook, foreign))
+        _require(
+            all(answer is None for answer in answers),
+            hook,
+            f"None for a solver of kind {self.foreign_kind!r}, which is not this plugin's",
+            repr(answers[0] if len(answers) == 1 else answers),
+            f"begin the hook with `if solver.kind != {self._kind_hint(manager)}: return None`",
+        )
+        changed = _diff(before, tree_snapshot(solver.env_dir))
+        _require(
+            not changed,
+            hook,
+            "no file changes for a solver of another kind",
+            ", ".join(changed),
+            "return None before touching any file when the kind is not yours",
+        )
+
+    def test_validate_case_reads_only_and_answers_a_list(
+        self, manager: GymPrecicePluginManager, solver: SolverContext
+    ) -> None:
+        """Validation sees the pristine case (``run_dir == source_dir``) and writes nothing.
+
+        Core validates when a configuration is loaded, before any run directory exists;
+        for its own kind the plugin answers a list of problems (empty when all is well).
+        """
+        hook = "gymprecice_validate_case"
+        if not self._implemented(manager, hook):
+            pytest.skip(f"{hook} is not implemented")
+        pristine = validation_context(solver)
+        before = tree_snapshot(pristine.source_dir)
+        for answer in self._answers(manager, hook, {"solver": pristine}):
+            _require(
+                isinstance(answer, list) and all(isinstance(p, str) and p for p in answer),
+                hook,
+                "a list of problem messages (empty when the case is fine) for the plugin's "
+                "own kind; None means 'not my kind'",
+                repr(answer),
+                "return [] when all is well, or one string per problem naming the file and the fix",
+            )
+        changed = _diff(before, tree_snapshot(pristine.source_dir))
+        _require(
+            not changed,
+            hook,
+            "no file changes in the pristine case (validation only reads)",
+            ", ".join(changed),
+            "read the files; write only in gymprecice_prepare_case, under solver.run_dir",
         )
 
     def test_prepare_and_reset_write_only_under_run_dir(
@@ -310,45 +405,117 @@ class SolverPluginConformance:
         excluded = [solver.run_dir, solver.env_dir / _CORE_STATE_DIR]
         around_before = tree_snapshot(tmp_path, exclude=excluded)
 
-        assert manager.hook.gymprecice_prepare_case(solver=solver) is True
+        lifecycle.prepare_case(manager.hook, solver)
         for episode in range(2):  # a reset must also work after a reset
             solver.rng = np.random.default_rng(episode)
-            assert manager.hook.gymprecice_reset_case(solver=solver) is True
+            lifecycle.reset_case(manager.hook, solver)
 
-        assert not _diff(source_before, tree_snapshot(solver.source_dir)), (
-            f"the pristine case {solver.source_dir} was modified"
+        changed = _diff(source_before, tree_snapshot(solver.source_dir))
+        _require(
+            not changed,
+            "gymprecice_prepare_case/gymprecice_reset_case",
+            f"the pristine case {solver.source_dir} to stay as it was",
+            ", ".join(changed),
+            "write only under solver.run_dir (the env's copy); read solver.source_dir",
         )
         changed = _diff(around_before, tree_snapshot(tmp_path, exclude=excluded))
-        assert not changed, f"files outside the run directory changed: {changed}"
+        _require(
+            not changed,
+            "gymprecice_prepare_case/gymprecice_reset_case",
+            "no file changes outside the run directory",
+            ", ".join(changed),
+            "write only under solver.run_dir",
+        )
 
     def test_launch_spec_runs_inside_run_dir(
         self, manager: GymPrecicePluginManager, solver: SolverContext
     ) -> None:
-        assert manager.hook.gymprecice_prepare_case(solver=solver) is True
-        assert manager.hook.gymprecice_reset_case(solver=solver) is True
-        spec = manager.hook.gymprecice_launch_solver(solver=solver)
-        assert isinstance(spec, LaunchSpec), f"launch returned {spec!r}, not a LaunchSpec"
+        hook = "gymprecice_launch_solver"
+        lifecycle.prepare_case(manager.hook, solver)
+        lifecycle.reset_case(manager.hook, solver)
+        spec = lifecycle.launch_spec(manager.hook, solver)
         argv = list(spec.argv)
-        assert argv, "LaunchSpec.argv is empty"
-        assert all(isinstance(a, (str, os.PathLike)) for a in argv), f"argv items: {argv!r}"
-        assert _inside(Path(spec.cwd), solver.run_dir), (
-            f"LaunchSpec.cwd {spec.cwd} is outside the run directory {solver.run_dir}"
+        _require(
+            bool(argv),
+            hook,
+            "a LaunchSpec with a non-empty argv",
+            "argv=[]",
+            "give the program and its arguments, e.g. LaunchSpec(argv=['mysolver', 'case.cfg'], "
+            "cwd=solver.run_dir)",
         )
-        assert all(isinstance(k, str) and isinstance(v, str) for k, v in dict(spec.env).items()), (
-            f"LaunchSpec.env must map str to str: {dict(spec.env)!r}"
+        _require(
+            all(isinstance(a, (str, os.PathLike)) for a in argv),
+            hook,
+            "argv items that are strings or paths",
+            repr(argv),
+            "convert numbers to str",
         )
-        assert spec.log_name and Path(spec.log_name).name == spec.log_name, (
-            f"LaunchSpec.log_name must be a plain file name, got {spec.log_name!r}"
+        _require(
+            _inside(Path(spec.cwd), solver.run_dir),
+            hook,
+            f"LaunchSpec.cwd inside the run directory {solver.run_dir}",
+            str(spec.cwd),
+            "use cwd=solver.run_dir (or a directory below it), never solver.source_dir",
+        )
+        env = dict(spec.env)
+        _require(
+            all(isinstance(k, str) and isinstance(v, str) for k, v in env.items()),
+            hook,
+            "LaunchSpec.env mapping str to str",
+            repr(env),
+            "convert the values to str",
+        )
+        _require(
+            bool(spec.log_name) and Path(spec.log_name).name == spec.log_name,
+            hook,
+            "LaunchSpec.log_name to be a plain file name (the log lands in cwd)",
+            repr(spec.log_name),
+            "give a name like 'mysolver.log', without directories",
         )
 
     def test_check_solver_answers_str_or_none(
         self, manager: GymPrecicePluginManager, solver: SolverContext
     ) -> None:
-        if not self._implemented(manager, "gymprecice_check_solver"):
-            pytest.skip("gymprecice_check_solver is not implemented")
+        """``None`` means "nothing wrong that I can see"; a problem is a non-empty string."""
+        hook = "gymprecice_check_solver"
+        if not self._implemented(manager, hook):
+            pytest.skip(f"{hook} is not implemented")
         for log_text in ("", "some ordinary solver output\n"):
             answer = manager.hook.gymprecice_check_solver(solver=solver, log_text=log_text)
-            assert answer is None or (isinstance(answer, str) and answer.strip()), answer
+            _require(
+                answer is None or (isinstance(answer, str) and bool(answer.strip())),
+                hook,
+                "None (nothing wrong) or a non-empty message",
+                repr(answer),
+                "return None for a healthy log; a problem as one string naming the file and "
+                "the fix",
+            )
+            _require(
+                answer is None,
+                hook,
+                f"None for an ordinary log ({log_text!r}): nothing points to a problem",
+                repr(answer),
+                "only report what the log shows to be wrong (core fails the reset on any answer)",
+            )
+
+    def test_interface_geometry_answers_geometry_or_none(
+        self, manager: GymPrecicePluginManager, solver: SolverContext
+    ) -> None:
+        """``None`` means "I do not know this mesh": the user can still set vertices."""
+        hook = "gymprecice_interface_geometry"
+        if not self._implemented(manager, hook):
+            pytest.skip(f"{hook} is not implemented")
+        lifecycle.prepare_case(manager.hook, solver)
+        answer = manager.hook.gymprecice_interface_geometry(
+            solver=solver, interface="conformance-interface", mesh="Conformance-Mesh"
+        )
+        _require(
+            answer is None or isinstance(answer, InterfaceGeometry),
+            hook,
+            "an InterfaceGeometry, or None for a mesh the plugin does not know",
+            repr(answer),
+            "return None for the mesh 'Conformance-Mesh', which no case defines",
+        )
 
     def test_detect_divergence_reads_only_and_spares_a_healthy_solver(
         self, manager: GymPrecicePluginManager, solver: SolverContext
@@ -359,34 +526,68 @@ class SolverPluginConformance:
         from noise. Core calls the hook while the solver runs (``returncode=None``) and
         after a failure; either way the run directory must stay as it was.
         """
-        if not self._implemented(manager, "gymprecice_detect_divergence"):
-            pytest.skip("gymprecice_detect_divergence is not implemented")
-        assert manager.hook.gymprecice_prepare_case(solver=solver) is True
-        assert manager.hook.gymprecice_reset_case(solver=solver) is True
+        hook = "gymprecice_detect_divergence"
+        if not self._implemented(manager, hook):
+            pytest.skip(f"{hook} is not implemented")
+        lifecycle.prepare_case(manager.hook, solver)
+        lifecycle.reset_case(manager.hook, solver)
         before = tree_snapshot(solver.env_dir)
         for returncode in (None, 0, 1):
             for log_text in ("", "some ordinary solver output\n"):
                 answer = manager.hook.gymprecice_detect_divergence(
                     solver=solver, log_text=log_text, returncode=returncode
                 )
-                assert answer is None, (
-                    f"gymprecice_detect_divergence called a freshly reset solver diverged "
-                    f"(returncode {returncode}, log {log_text!r}): {answer!r}"
+                _require(
+                    answer is None,
+                    hook,
+                    f"None (not diverged) for a freshly reset solver (returncode {returncode}, "
+                    f"log {log_text!r})",
+                    repr(answer),
+                    "return evidence only when the log or a measured quantity shows divergence",
                 )
-        assert not _diff(before, tree_snapshot(solver.env_dir)), (
-            "gymprecice_detect_divergence changed files; it may only read them"
+        changed = _diff(before, tree_snapshot(solver.env_dir))
+        _require(
+            not changed,
+            hook,
+            "no file changes (the hook only reads)",
+            ", ".join(changed),
+            "read the log and output files; never write or delete them here",
         )
 
     def test_doctor_checks_are_doctor_checks(self, manager: GymPrecicePluginManager) -> None:
-        if not self._implemented(manager, "gymprecice_doctor_checks"):
-            pytest.skip("gymprecice_doctor_checks is not implemented")
+        hook = "gymprecice_doctor_checks"
+        if not self._implemented(manager, hook):
+            pytest.skip(f"{hook} is not implemented")
         for answer in manager.hook.gymprecice_doctor_checks():
-            assert isinstance(answer, list), f"doctor checks must be a list, got {answer!r}"
+            _require(
+                isinstance(answer, list),
+                hook,
+                "a list of DoctorCheck",
+                repr(answer),
+                "return [DoctorCheck(...), ...] (an empty list when there is nothing to check)",
+            )
             for check in answer:
-                assert isinstance(check, DoctorCheck), f"{check!r} is not a DoctorCheck"
-                assert check.name and isinstance(check.ok, bool)
-                if not check.ok:
-                    assert check.advice, f"failed check {check.name!r} says nothing about a fix"
+                _require(
+                    isinstance(check, DoctorCheck),
+                    hook,
+                    "DoctorCheck items",
+                    repr(check),
+                    "build each item with gymprecice.hookspecs.DoctorCheck",
+                )
+                _require(
+                    bool(check.name) and isinstance(check.ok, bool),
+                    hook,
+                    "a name and a bool `ok` in every DoctorCheck",
+                    repr(check),
+                    "set name='what was looked for' and ok=True/False",
+                )
+                _require(
+                    check.ok or bool(check.advice),
+                    hook,
+                    f"advice on the failed check {check.name!r}",
+                    "advice=''",
+                    "say what to install or set, e.g. advice='run `gymprecice install ...`'",
+                )
 
     def test_import_is_light(self, plugin: Any) -> None:
         """``import gymprecice`` loads every plugin module: heavy imports belong in functions."""
@@ -404,9 +605,24 @@ class SolverPluginConformance:
         proc = subprocess.run(
             [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
         )
-        assert proc.returncode == 0, proc.stderr
-        imported = json.loads(proc.stdout.strip().splitlines()[-1])
-        assert not imported, (
-            f"importing {module} imports {imported}; move those imports into the functions "
-            "that use them"
+        _require(
+            proc.returncode == 0,
+            "the plugin module",
+            f"`import {module}` to work in a fresh interpreter",
+            proc.stderr.strip()[-2000:],
+            "fix the import error above",
         )
+        imported = json.loads(proc.stdout.strip().splitlines()[-1])
+        _require(
+            not imported,
+            "the plugin module",
+            f"importing {module} not to import {heavy}",
+            f"it imports {imported}",
+            "move those imports into the functions that use them",
+        )
+
+    def _kind_hint(self, manager: GymPrecicePluginManager) -> str:
+        kinds: list[str] = []
+        for answer in manager.hook.gymprecice_solver_kinds():
+            kinds.extend(answer or {})
+        return repr(kinds[0]) if len(kinds) == 1 else f"a kind of {kinds!r}"
