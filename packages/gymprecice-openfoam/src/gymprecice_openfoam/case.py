@@ -20,7 +20,8 @@ reset (every episode): restore that state: drop later time directories (also in
 ``processor*``), put back any changed file of the initial time directories, drop
 ``postProcessing`` output from the episode's start time on, solver logs and preCICE
 output. With ``snapshots`` the start is drawn with ``solver.rng`` from a fixed
-train/eval split chosen by ``env.reset(options={"split": "eval"})``.
+train/eval split chosen by ``env.reset(options={"split": "eval"})``; ``"start": k`` in the
+options takes the split's k-th snapshot instead (every held-out start, one by one).
 """
 
 from __future__ import annotations
@@ -390,7 +391,7 @@ def _drop_late_post(run_dir: Path, start: float) -> None:
                 _remove(entry)
 
 
-def _split(names: list[str], options: dict[str, Any]) -> dict[str, list[str]]:
+def split_snapshots(names: list[str], options: dict[str, Any]) -> dict[str, list[str]]:
     """Fixed train/eval split: every m-th snapshot (in time order) is for evaluation.
 
     Interleaving spreads both sets over the phases of a periodic flow. ``eval_fraction``
@@ -626,7 +627,7 @@ def prepare_case(solver: SolverContext) -> PreparedCase:
     if explicit_split is not None:
         split = {k: _snapshot_names(root, v, tol) for k, v in explicit_split.items()}
     else:
-        split = _split(snapshots, options) if snapshots else {}
+        split = split_snapshots(snapshots, options) if snapshots else {}
     prepared, kept_dirs = _store_times(run_dir, initial, snapshots, before)
 
     control.set_start(run_dir, initial, end_time=_end_time(solver, float(initial), options))
@@ -675,8 +676,18 @@ def _end_time(solver: SolverContext, start: float, options: dict[str, Any]) -> f
 # --------------------------------------------------------------------------- reset
 
 
-def choose_start(state: PreparedCase, rng: np.random.Generator | None, split: str | None) -> str:
-    """The episode's start time: the initial state, or a snapshot drawn with ``rng``."""
+def choose_start(
+    state: PreparedCase,
+    rng: np.random.Generator | None,
+    split: str | None,
+    start: int | None = None,
+) -> str:
+    """The episode's start time: the initial state, or a snapshot of the split.
+
+    ``start`` (reset option ``"start"``) takes the split's snapshot of that index in time
+    order, so that an evaluation can run every held-out start once; without it the
+    snapshot is drawn with ``rng``.
+    """
     if not state.snapshots:
         return state.initial_time
     if split in (None, "train", "eval"):
@@ -685,6 +696,15 @@ def choose_start(state: PreparedCase, rng: np.random.Generator | None, split: st
         pool = state.snapshots
     else:
         raise ConfigError(f"reset option split={split!r}: use 'train' (default), 'eval' or 'all'")
+    if start is not None:
+        if isinstance(start, bool) or not isinstance(start, (int, np.integer)):
+            raise ConfigError(f"reset option start={start!r}: must be an integer index")
+        if not 0 <= int(start) < len(pool):
+            raise ConfigError(
+                f"reset option start={start}: split {split or 'train'!r} has {len(pool)} "
+                f"snapshot(s) ({', '.join(pool)}); use 0 to {len(pool) - 1}"
+            )
+        return sorted(pool, key=float)[int(start)]
     generator = rng if rng is not None else np.random.default_rng()
     return pool[int(generator.integers(len(pool)))]
 
@@ -716,7 +736,12 @@ def reset_case(solver: SolverContext) -> str:
     """Return ``solver.run_dir`` to the episode's initial state; returns the start time."""
     run_dir = _check_run_dir(solver)
     state = _state(solver)
-    start = choose_start(state, solver.rng, solver.reset_options.get("split"))
+    start = choose_start(
+        state,
+        solver.rng,
+        solver.reset_options.get("split"),
+        solver.reset_options.get("start"),
+    )
     tol = state.tolerance
     start_value = float(start)
 

@@ -274,6 +274,7 @@ def _rollout_parsers(sub: Any) -> None:
         "training action bound (None: runs/<env>/train)",
     )
     p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
+    _all_starts_option(p)
     p.add_argument("--stochastic", action="store_true", help="sample actions instead")
     _baseline_option(p)
     p.set_defaults(func=_run("evaluate"))
@@ -287,6 +288,7 @@ def _rollout_parsers(sub: Any) -> None:
     )
     _env_options(p, rollout=True)
     p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
+    _all_starts_option(p)
     p.set_defaults(func=_run("baseline"))
 
     p = _parser(
@@ -311,8 +313,47 @@ def _rollout_parsers(sub: Any) -> None:
     )
     p.add_argument("--phase", type=float, default=0.0, help="phase in radians")
     p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
+    _all_starts_option(p)
     _baseline_option(p)
     p.set_defaults(func=_run("open-loop"))
+
+    p = _parser(
+        sub,
+        "feedback",
+        help="run a classical feedback law (the lift fed back on the jets)",
+        description="Feed one of the env's step metrics (the cylinders' lift Cl) back to "
+        "the actuator: a = clip(centre - gain * half_range * signal(t - delay actions)), "
+        "the textbook first controller a learned one should beat; same files as evaluate. "
+        "`gymprecice sweep --feedback-gains ... --feedback-delays ...` tunes it.",
+    )
+    _env_options(p, rollout=True)
+    p.add_argument(
+        "--gain",
+        type=float,
+        default=1.0,
+        help="fraction of the action's half range per unit of the signal",
+    )
+    p.add_argument(
+        "--delay",
+        type=_non_negative_int,
+        default=0,
+        help="whole actions between the signal and the action it sets (the phase shift)",
+    )
+    p.add_argument(
+        "--signal",
+        default=None,
+        help="the info['metrics'] entry fed back (None: Cl for the cylinders)",
+    )
+    p.add_argument(
+        "--centre",
+        type=float,
+        default=0.5,
+        help="the action without signal as a fraction of the action box (0.5: its middle)",
+    )
+    p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
+    _all_starts_option(p)
+    _baseline_option(p)
+    p.set_defaults(func=_run("feedback"))
 
     p = _parser(
         sub,
@@ -346,6 +387,22 @@ def _rollout_parsers(sub: Any) -> None:
         help="sinusoid frequencies (Hz), comma-separated",
     )
     p.add_argument(
+        "--feedback-gains",
+        default="",
+        help="gains of the classical feedback law to sweep, comma-separated (empty: none; "
+        "see `gymprecice feedback`), e.g. -2,-1,-0.5,0.5,1,2",
+    )
+    p.add_argument(
+        "--feedback-delays",
+        default="0",
+        help="its delays in whole actions, comma-separated",
+    )
+    p.add_argument(
+        "--feedback-signal",
+        default=None,
+        help="the info['metrics'] entry fed back (None: Cl for the cylinders)",
+    )
+    p.add_argument(
         "--episodes", type=_positive_int, default=3, help="held-out starts per controller"
     )
     p.set_defaults(func=_sweep)
@@ -363,6 +420,15 @@ def _rollout_parsers(sub: Any) -> None:
     p.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="output directories")
     p.add_argument("--out", type=Path, default=None, help="where to write (None: beside RUN)")
     p.set_defaults(func=_compare)
+
+
+def _all_starts_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--all-starts",
+        action="store_true",
+        help="one episode from every held-out start of the env (overrides --episodes; "
+        "refused for an env without held-out starts)",
+    )
 
 
 def _baseline_option(p: argparse.ArgumentParser) -> None:

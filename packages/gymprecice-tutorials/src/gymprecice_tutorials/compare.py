@@ -146,13 +146,14 @@ def compare_command(args: argparse.Namespace) -> int:
             _best(candidates, "uncontrolled"),
             _best(candidates, "constant"),
             _best(candidates, "sinusoid"),
+            _best(candidates, "feedback"),
         )
         if ref is not None
     ]
     titles = dict(
         zip(
-            ("uncontrolled", "constant", "sinusoid"),
-            ("uncontrolled", "best constant", "best sinusoid"),
+            ("uncontrolled", "constant", "sinusoid", "feedback"),
+            ("uncontrolled", "best constant", "best sinusoid", "best feedback"),
         )
     )
     objective = (env.objective or "negated mean reward").replace("_", " ")

@@ -40,6 +40,12 @@ class TutorialEnv:
     #: keyword arguments that make the env's uncontrolled flow, where no action means it
     #: (``gymprecice baseline`` and ``sweep`` add them)
     baseline_kwargs: tuple[tuple[str, object], ...] = ()
+    #: whether its packaged case keeps starts out of training (``held_out_starts``), the
+    #: starts ``gymprecice benchmark`` evaluates every controller on
+    held_out_starts: bool = False
+    #: ``gymprecice feedback``'s default signal: the ``info["metrics"]`` entry fed back
+    #: (``None``: none; the command then needs ``--signal``)
+    feedback_signal: str | None = "Cl"
 
 
 ENVIRONMENTS: dict[str, TutorialEnv] = {
@@ -66,6 +72,7 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "the jet cylinder's training case: coarse mesh, 1 s episodes from eight start "
             "snapshots, Rabault's reward and jet bound (learns in about 2 hours on 2 cores)",
             action_bound=2.5e-5,
+            held_out_starts=True,
         ),
         TutorialEnv(
             "rotating-cylinder-fast",
@@ -74,6 +81,7 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "the rotating cylinder on the jet cylinder's training case",
             action_unit="rad/s",
             action_bound=2.0,
+            held_out_starts=True,
         ),
         TutorialEnv(
             "quickstart",
@@ -93,6 +101,7 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             rollout_time=None,
             action_unit="m",
             action_bound=None,
+            feedback_signal=None,
         ),
         TutorialEnv(
             "perpendicular-flap-fast",
@@ -107,6 +116,8 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             action_bound=None,
             objective="mean_tip_displacement",
             baseline_kwargs=(("uncontrolled", True),),
+            held_out_starts=True,
+            feedback_signal=None,
         ),
     )
 }

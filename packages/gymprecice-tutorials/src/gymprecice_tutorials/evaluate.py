@@ -23,7 +23,15 @@ The controllers: ``evaluate`` is a trained PPO policy, deterministic by default 
 action: what one would deploy), over a horizon longer than the training episodes (10 s
 by default against 2 s) to show that the control holds; ``baseline`` is the uncontrolled
 flow (zero action: jets closed, cylinder at rest) that a controller is judged against;
-``open-loop`` is a sinusoid, the classic forcing a learned controller should beat.
+``open-loop`` is a sinusoid, the classic forcing a learned controller should beat;
+``feedback`` a classical feedback law (:mod:`gymprecice_tutorials.feedback`).
+
+A controller is ``controller(observation, time) -> action``; one with a ``reset()``
+method has it called at every episode's start, one with ``observe(info)`` sees every
+step's ``info`` (how a feedback law measures its signal). With ``--all-starts`` the
+commands run one episode from each held-out start of the env
+(:mod:`gymprecice_tutorials.starts`); episode k always runs held-out start k (mod their
+number), whatever the seed.
 
 ``evaluate --policy`` names the policy: a training directory or model file, a policy
 shipped with the package by name, or ``shipped`` (the one shipped for the env). The env
@@ -47,6 +55,7 @@ import numpy as np
 
 from gymprecice_tutorials.environments import TutorialEnv, find_environment
 from gymprecice_tutorials.envs import load_model, make_env_checked, vecnormalize_path
+from gymprecice_tutorials.feedback import FeedbackController
 from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
 from gymprecice_tutorials.requirements import require_solvers
 from gymprecice_tutorials.shipped_policies import (
@@ -56,6 +65,12 @@ from gymprecice_tutorials.shipped_policies import (
     policy_env_kwargs,
     resolve_policy,
     shipped_policies,
+)
+from gymprecice_tutorials.starts import (
+    NoHeldOutStarts,
+    held_out_starts,
+    require_held_out_starts,
+    start_options,
 )
 from gymprecice_tutorials.train import build_env_kwargs, default_out
 from gymprecice_tutorials.wrapping import WrapError, wrap_spec
@@ -116,15 +131,22 @@ def rollout(
     history_rows: list[dict[str, Any]] = []
     coefficient_rows: list[tuple[int, float, float, float]] = []
     summaries = []
+    starts = held_out_starts(env)
     for episode in range(episodes):
-        # a case with a library of start snapshots starts from its held-out ones
-        obs, info = env.reset(seed=seed + episode, options={"split": "eval"})
+        # an env with held-out starts runs them in turn (episode k: start k mod their
+        # number); any other env starts from what its held-out split gives for the seed
+        options = start_options(episode, len(starts))
+        obs, info = env.reset(seed=seed + episode, options=options)
+        if hasattr(controller, "reset"):
+            controller.reset()
         first_row, first_coefficient = len(history_rows), len(coefficient_rows)
         t = float(info.get("time", 0.0))
         total, step = 0.0, 0
         while True:
             action = controller(obs, t)
             obs, reward, terminated, truncated, info = env.step(action)
+            if hasattr(controller, "observe"):
+                controller.observe(info)
             step += 1
             total += float(reward)
             start, t = t, float(info.get("time", t))
@@ -150,7 +172,15 @@ def rollout(
             for name in r
             if name not in _NOT_METRICS and not name.startswith("action_")
         )
-        summary_row = {"episode": episode, "steps": step, "return": total, "end_time": t}
+        summary_row: dict[str, Any] = {
+            "episode": episode,
+            "steps": step,
+            "return": total,
+            "end_time": t,
+        }
+        if starts:
+            summary_row["start"] = options["start"]
+            summary_row["start_label"] = starts[options["start"]]
         summary_row.update(
             {f"mean_{name}": _nanmean([r.get(name, math.nan) for r in rows]) for name in metrics}
         )
@@ -180,7 +210,9 @@ def series_means(coefficients: list[tuple[float, float]]) -> dict[str, float]:
 
 def over_episodes(episodes: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:
     """Mean, standard deviation (``ddof=0``) and count over episodes of each scalar."""
-    keys = [k for k in episodes[0] if k not in ("episode", "steps", "end_time")]
+    keys = [
+        k for k in episodes[0] if k not in ("episode", "steps", "end_time", "start", "start_label")
+    ]
     out: dict[str, dict[str, float | int]] = {}
     for key in keys:
         values = np.array([e[key] for e in episodes if e.get(key) is not None], dtype=float)
@@ -294,7 +326,7 @@ def _report(command: str, summary: dict[str, Any], out: Path) -> str:
 
 
 def rollout_command(command: str, args: argparse.Namespace) -> int:
-    """``gymprecice evaluate`` / ``baseline`` / ``open-loop``."""
+    """``gymprecice evaluate`` / ``baseline`` / ``open-loop`` / ``feedback``."""
     try:
         env_info = find_environment(args.env)
     except KeyError as exc:
@@ -337,11 +369,20 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
         rescale=command == "evaluate",
         robustness=robustness,
     )
+    episodes = args.episodes
+    if getattr(args, "all_starts", False):
+        try:
+            episodes = len(require_held_out_starts(env, env_info))
+        except NoHeldOutStarts as exc:
+            env.close()
+            print(f"gymprecice {command}: {exc}", file=sys.stderr)
+            return 2
     settings: dict[str, Any] = {
         "robustness": robustness,
         "env_id": env_info.env_id,
         "env_kwargs": kwargs,
-        "episodes": args.episodes,
+        "episodes": episodes,
+        "held_out_starts": list(held_out_starts(env)),
         "double": args.double,
     }
     try:
@@ -374,6 +415,24 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
             )
         elif command == "baseline":
             controller = zero_controller(env.action_space)
+        elif command == "feedback":
+            signal = args.signal or env_info.feedback_signal
+            if signal is None:
+                print(
+                    f"gymprecice feedback: {env_info.name} has no default signal; pass --signal "
+                    "NAME (one of the metrics its steps report in info['metrics'])",
+                    file=sys.stderr,
+                )
+                return 2
+            try:
+                feedback = FeedbackController(
+                    env.action_space, signal, args.gain, args.delay, args.centre
+                )
+            except (TypeError, ValueError) as exc:
+                print(f"gymprecice feedback: {exc}", file=sys.stderr)
+                return 2
+            controller = feedback
+            settings.update(feedback.settings())
         else:
             frequency = args.frequency or env_info.open_loop_frequency
             controller = sine_controller(env.action_space, args.amplitude, frequency, args.phase)
@@ -381,9 +440,9 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
                 {"amplitude": args.amplitude, "frequency": frequency, "phase": args.phase}
             )
         case_dir = getattr(getattr(env.unwrapped, "config", None), "case_dir", None)
-        seeds = {"seed": args.seed, "episode_seeds": [args.seed + i for i in range(args.episodes)]}
+        seeds = {"seed": args.seed, "episode_seeds": [args.seed + i for i in range(episodes)]}
         write_manifest(out, command=command, case_dir=case_dir, seeds=seeds, settings=settings)
-        summary = rollout(env, controller, out, episodes=args.episodes, seed=args.seed)
+        summary = rollout(env, controller, out, episodes=episodes, seed=args.seed)
         if baseline is not None:
             summary["baseline"] = str(args.baseline.resolve())
             summary["change_percent"] = change_against(summary, baseline)

@@ -8,8 +8,9 @@ that ``evaluate`` uses) and writes, under ``--out``:
 * ``<label>/``: each controller's rollout (``history.csv``, ``summary.json``), as
   ``baseline`` / ``open-loop`` write them;
 * ``sweep.csv`` and ``sweep.json``: per controller the objective on every start, its mean,
-  its standard deviation and its spread (max - min) over the starts; the best constant and
-  the best sinusoid;
+  its standard deviation and its spread (max - min) over the starts; the best constant,
+  the best sinusoid and, with ``--feedback-gains``, the best classical feedback law
+  (:mod:`gymprecice_tutorials.feedback`: a gain x delay grid);
 * ``sweep.png``: the objective against the constant action and the sinusoids' grid.
 
 The objective is the environment's (``TutorialEnv.objective``, lower is better; for the flap
@@ -34,6 +35,7 @@ import numpy as np
 from gymprecice_tutorials.environments import TutorialEnv, find_environment
 from gymprecice_tutorials.envs import make_env_checked
 from gymprecice_tutorials.evaluate import rollout, sine_controller, zero_controller
+from gymprecice_tutorials.feedback import FeedbackController
 from gymprecice_tutorials.manifest import write_manifest
 from gymprecice_tutorials.requirements import require_solvers
 from gymprecice_tutorials.train import build_env_kwargs, default_out
@@ -46,7 +48,7 @@ class SweepResult:
     """One controller of the sweep and its objective on each held-out start."""
 
     label: str
-    kind: str  # "uncontrolled" | "constant" | "sinusoid"
+    kind: str  # "uncontrolled" | "constant" | "sinusoid" | "feedback"
     settings: dict[str, float] = field(default_factory=dict)
     objectives: list[float] = field(default_factory=list)
 
@@ -118,6 +120,16 @@ def sweep_command(args: argparse.Namespace) -> int:
     frequencies = parse_grid(args.frequencies, "frequencies")
     if any(f <= 0 for f in frequencies):
         raise SystemExit("gymprecice sweep: --frequencies must be positive (Hz)")
+    gains = parse_grid(args.feedback_gains, "feedback-gains") if args.feedback_gains else []
+    delays = [int(d) for d in parse_grid(args.feedback_delays, "feedback-delays")]
+    if any(d < 0 for d in delays):
+        raise SystemExit("gymprecice sweep: --feedback-delays are whole numbers of actions >= 0")
+    signal = args.feedback_signal or env_info.feedback_signal
+    if gains and signal is None:
+        raise SystemExit(
+            f"gymprecice sweep: {env_info.name} has no default feedback signal; pass "
+            "--feedback-signal NAME (one of the metrics in its steps' info['metrics'])"
+        )
     out = (args.out or default_out(env_info, "sweep")).resolve()
     kwargs = build_env_kwargs(args, env_info, out)
     if not args.double:
@@ -146,6 +158,9 @@ def sweep_command(args: argparse.Namespace) -> int:
             "centre": args.centre,
             "amplitudes": amplitudes,
             "frequencies": frequencies,
+            "feedback_signal": signal if gains else None,
+            "feedback_gains": gains,
+            "feedback_delays": delays if gains else [],
         },
     )
     uncontrolled = make_env_checked(
@@ -189,6 +204,13 @@ def sweep_command(args: argparse.Namespace) -> int:
                 controller = sine_controller(space, amplitude, frequency, centre=args.centre)
                 result.objectives = _run(env, controller, out / label, env_info, args)
                 report(result)
+        for gain in gains:
+            for delay in delays:
+                label = f"feedback-{signal}-g{gain:g}-d{delay}"
+                result = SweepResult(label, "feedback", {"gain": gain, "delay": delay})
+                law = FeedbackController(space, str(signal), gain, delay)
+                result.objectives = _run(env, law, out / label, env_info, args)
+                report(result)
     finally:
         env.close()
     _write(out, results)
@@ -212,9 +234,10 @@ def _write(out: Path, results: list[SweepResult]) -> None:
         "controllers": rows,
         "best_constant": best(results, "constant").row() if best(results, "constant") else None,
         "best_sinusoid": best(results, "sinusoid").row() if best(results, "sinusoid") else None,
+        "best_feedback": best(results, "feedback").row() if best(results, "feedback") else None,
     }
     (out / "sweep.json").write_text(json.dumps(summary, indent=2) + "\n")
-    for kind in ("constant", "sinusoid"):
+    for kind in ("constant", "sinusoid", "feedback"):
         chosen = best(results, kind)
         if chosen is not None:
             print(

@@ -183,6 +183,30 @@ class CylinderFlowEnv(Adapter):
                 )
         return geometry
 
+    @property
+    def held_out_starts(self) -> tuple[str, ...]:
+        """The starts kept out of training, in the order ``reset(options={"split": "eval",
+        "start": k})`` takes them (empty: the case has no snapshot library).
+
+        An OpenFOAM case's are its ``snapshots`` option's eval split (the OpenFOAM plugin's
+        rule). The test double's flow has no snapshots: it names the recipe's held-out
+        snapshots, but starts every episode from the same state.
+        """
+        from gymprecice_openfoam.case import split_snapshots
+
+        solver = self.config.solvers[self.fluid]
+        if solver.kind == "openfoam":
+            raw = solver.options.get("snapshots") or []
+            if isinstance(raw, Mapping):
+                times = [float(t) for t in raw.get("eval", [])]
+            else:
+                names = [f"{float(t):g}" for t in raw]
+                times = [float(t) for t in split_snapshots(names, dict(solver.options))["eval"]]
+        else:
+            names = [f"{t:g}" for t in self.case_spec.snapshots]
+            times = [float(t) for t in split_snapshots(names, {})["eval"]] if names else []
+        return tuple(f"t = {t:g} s" for t in sorted(times))
+
     # -- reading the solver's outputs ------------------------------------------------------
     def _open(self) -> tuple[OutputReader, OutputReader]:
         """The OpenFOAM plugin's readers of the fluid's probes and force coefficients.

@@ -347,12 +347,21 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         """Start the coupled run, drive it through this episode's gust, return the state.
 
         ``options={"split": "eval"}`` takes :data:`EVAL_GUSTS` ``[seed % 3]`` (``seed``
-        0 when none is given); any other split draws a training gust from the seed.
+        0 when none is given), or ``[k]`` with ``"start": k``; any other split draws a
+        training gust from the seed.
         """
         split = (options or {}).get("split", "train")
         if split not in ("train", "eval"):
             raise ValueError(f"split must be 'train' or 'eval', got {split!r}")
-        self._split, self._split_seed = split, seed
+        start = (options or {}).get("start")
+        if start is not None and not (
+            isinstance(start, int) and not isinstance(start, bool) and 0 <= start < len(EVAL_GUSTS)
+        ):
+            raise ValueError(
+                f"reset option start={start!r}: {len(EVAL_GUSTS)} held-out gusts, use 0 to "
+                f"{len(EVAL_GUSTS) - 1}"
+            )
+        self._split, self._split_seed = split, seed if start is None else start
         obs, info = super().reset(seed=seed, options=options)  # draws self.start
         assert self.start is not None
         while self.time < self.settle_time - 1e-9:
@@ -372,6 +381,12 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
                 )
         info = {**info, "start": {"gust": list(self.start), "split": split}}
         return obs, info
+
+    @property
+    def held_out_starts(self) -> tuple[str, ...]:
+        """The held-out gusts, in the order ``reset(options={"split": "eval", "start": k})``
+        takes them."""
+        return tuple(f"jet {g.first:g} -> {g.second:g} m at {g.switch:g} s" for g in EVAL_GUSTS)
 
     def _get_action(self, action: Any, write_var_list: list) -> dict:
         if not (self.uncontrolled and self.time >= self.settle_time - 1e-9):
