@@ -1,4 +1,5 @@
-"""``gymprecice train | evaluate | baseline | open-loop | sweep | compare | plot | ship-policy | policies``.
+"""``gymprecice train | evaluate | baseline | open-loop | feedback | sweep | compare | benchmark
+| plot | ship-policy | policies``.
 
 Added to the ``gymprecice`` command line by the tutorials plugin. Every command that runs
 an environment writes into one output directory (``--out``, default
@@ -9,7 +10,9 @@ case file hashes, seeds, command line), so the directory alone says how it was m
     gymprecice evaluate jet-cylinder --time 10
     gymprecice baseline jet-cylinder --time 10
     gymprecice open-loop jet-cylinder --amplitude 0.5 --frequency 3
+    gymprecice feedback jet-cylinder-fast --gain 2 --delay 3 --all-starts
     gymprecice sweep perpendicular-flap-fast            # uncontrolled, constants, sinusoids
+    gymprecice benchmark jet-cylinder-fast --seeds 5 --algo ppo,sac
     gymprecice compare runs/perpendicular-flap-fast/sweep runs/perpendicular-flap-fast/evaluate
     gymprecice plot runs/jet-cylinder/train runs/jet-cylinder/evaluate \\
         --baseline runs/jet-cylinder/baseline
@@ -141,6 +144,7 @@ def add_commands(sub: Any) -> None:
     """Add the tutorials' sub-commands to ``gymprecice``'s argparse sub-parsers."""
     _train_parser(sub)
     _rollout_parsers(sub)
+    _benchmark_parser(sub)
     _plot_parser(sub)
     _policy_parsers(sub)
 
@@ -420,6 +424,118 @@ def _rollout_parsers(sub: Any) -> None:
     p.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="output directories")
     p.add_argument("--out", type=Path, default=None, help="where to write (None: beside RUN)")
     p.set_defaults(func=_compare)
+
+
+def _benchmark_parser(sub: Any) -> None:
+    p = _parser(
+        sub,
+        "benchmark",
+        help="train N seeds per algorithm, evaluate every held-out start, baselines, intervals",
+        description="Train each algorithm with seeds 0..N-1 (resumably: a manifest per seed), "
+        "evaluate every policy deterministically from every held-out start, run the "
+        "classical baselines on the same starts (uncontrolled, best constant, best "
+        "open-loop sinusoid, best feedback law of a documented sweep) and write "
+        "results.md/.csv/.json (mean and interquartile mean with 95%% stratified-bootstrap "
+        "intervals) and two figures. Settings are recorded in benchmark.json; a rerun "
+        "with other settings is refused (--fresh starts over). See docs/benchmark.md.",
+    )
+    p.add_argument(
+        "env",
+        metavar="ENV",
+        help=f"environment with held-out starts: {', '.join(ENVIRONMENTS)} (or its id)",
+    )
+    p.add_argument(
+        "--seeds", type=_positive_int, default=5, help="training seeds per algorithm (0..N-1)"
+    )
+    p.add_argument(
+        "--algo", default="ppo", help=f"algorithms, comma-separated ({', '.join(ALGORITHMS)})"
+    )
+    p.add_argument(
+        "--timesteps", type=_positive_int, default=100_000, help="actions per training seed"
+    )
+    p.add_argument("--n-envs", type=_positive_int, default=1, help="parallel envs per seed")
+    p.add_argument(
+        "--train-args",
+        action="append",
+        default=[],
+        metavar="[ALGO:]FLAGS",
+        help="more `gymprecice train` flags, for every algorithm or (ALGO: prefix) one, "
+        "e.g. 'ppo: --n-steps 40 --net 64,64' (repeatable)",
+    )
+    p.add_argument(
+        "--episode-time",
+        type=_positive_float,
+        default=None,
+        metavar="SECONDS",
+        help="simulated seconds per training episode (None: the case's)",
+    )
+    p.add_argument(
+        "--eval-time",
+        type=_positive_float,
+        default=None,
+        metavar="SECONDS",
+        help="simulated seconds per evaluation episode (None: the env's rollout horizon)",
+    )
+    p.add_argument(
+        "--env-kwargs",
+        type=_json_object,
+        default={},
+        metavar="JSON",
+        help="extra keyword arguments of the environment (training and evaluation)",
+    )
+    p.add_argument("--out", type=Path, default=None, help="output (None: runs/<env>/benchmark)")
+    p.add_argument("--double", action="store_true", help="run on the test double (for tests)")
+    p.add_argument(
+        "--require-solvers", action="store_true", help="the doctor's whole report when missing"
+    )
+    p.add_argument(
+        "--retries",
+        type=_non_negative_int,
+        default=1,
+        help="times a seed whose training fails is run again before the benchmark stops",
+    )
+    p.add_argument(
+        "--no-baselines", action="store_true", help="learned controllers only (no sweep)"
+    )
+    p.add_argument(
+        "--constants", type=_non_negative_int, default=3, help="constant actions in the sweep"
+    )
+    p.add_argument(
+        "--amplitudes",
+        default="0.25,0.5,1",
+        help="open-loop sinusoid amplitudes (fractions of the half range)",
+    )
+    p.add_argument("--frequencies", default="1.5,3,6", help="open-loop sinusoid frequencies (Hz)")
+    p.add_argument(
+        "--feedback-gains",
+        default="-2,-1,1,2",
+        help="feedback gains to sweep (empty: no feedback baseline)",
+    )
+    p.add_argument(
+        "--feedback-delays",
+        default="0,2,4,6",
+        help="feedback delays (whole actions; with both signs of gain they span a shedding period of the cylinders)",
+    )
+    p.add_argument(
+        "--feedback-signal",
+        default=None,
+        help="the info['metrics'] entry fed back (None: Cl for the cylinders)",
+    )
+    p.add_argument("--bootstrap-reps", type=_positive_int, default=2000, help="bootstrap resamples")
+    p.add_argument("--fresh", action="store_true", help="start over, deleting the benchmark's runs")
+    p.add_argument(
+        "--ray",
+        metavar="auto|ADDRESS",
+        default=None,
+        help="not implemented yet (refused): spread seeds over a Ray cluster",
+    )
+    p.set_defaults(func=_benchmark)
+
+
+def _benchmark(args: argparse.Namespace) -> int:
+    from gymprecice_tutorials.benchmark import benchmark_command
+
+    return benchmark_command(args)
 
 
 def _all_starts_option(p: argparse.ArgumentParser) -> None:

@@ -40,7 +40,7 @@ from gymprecice_tutorials.manifest import write_manifest
 from gymprecice_tutorials.requirements import require_solvers
 from gymprecice_tutorials.train import build_env_kwargs, default_out
 
-__all__ = ["SweepResult", "constant_controller", "parse_grid", "sweep_command"]
+__all__ = ["SweepResult", "constant_controller", "objective", "parse_grid", "sweep_command"]
 
 
 @dataclass
@@ -92,7 +92,8 @@ def constant_controller(space: gym.Space, fraction: float) -> Callable[[Any, flo
     return lambda obs, t: action
 
 
-def _objective(env_info: TutorialEnv, episode: dict[str, Any]) -> float:
+def objective(env_info: TutorialEnv, episode: dict[str, Any]) -> float:
+    """An episode's objective (lower is better): the env's, else the negated mean reward."""
     if env_info.objective:
         return float(episode[f"mean_{env_info.objective}"])
     return -float(episode["return"]) / max(1, int(episode["steps"]))
@@ -102,7 +103,7 @@ def _run(
     env: gym.Env, controller: Any, out: Path, env_info: TutorialEnv, args: argparse.Namespace
 ) -> list[float]:
     summary = rollout(env, controller, out, episodes=args.episodes, seed=args.seed)
-    return [_objective(env_info, episode) for episode in summary["episodes"]]
+    return [objective(env_info, episode) for episode in summary["episodes"]]
 
 
 def sweep_command(args: argparse.Namespace) -> int:

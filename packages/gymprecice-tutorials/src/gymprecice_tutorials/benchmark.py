@@ -1,0 +1,551 @@
+"""``gymprecice benchmark``: every seed trained, every held-out start evaluated, intervals.
+
+One training seed evaluated from one start cannot tell luck from skill, nor a learned
+controller from what a simple forcing does. This command runs the protocol of
+docs/benchmark.md on one environment, reusing the other commands for each piece:
+
+1. **train** each algorithm (``--algo ppo,sac``) with each seed ``0..N-1``
+   (``gymprecice train`` into ``<out>/train/<algo>/seed_<k>``, each with its manifest);
+   a seed already trained to ``--timesteps`` is kept, one cut short resumes from its
+   newest checkpoint; a seed whose training fails is reported and re-run (``--retries``),
+   and if it still fails the benchmark stops without a table: a seed is never silently
+   dropped from the aggregate;
+2. **evaluate** every policy deterministically from every held-out start
+   (``gymprecice evaluate --all-starts`` into ``<out>/eval/<algo>/seed_<k>``);
+3. **baselines** on the same starts (``gymprecice sweep`` into ``<out>/baselines``): the
+   uncontrolled flow, the best constant, the best open-loop sinusoid of an amplitude x
+   frequency grid and the best classical feedback law of a gain x delay grid
+   (:mod:`gymprecice_tutorials.feedback`), each chosen by its mean objective;
+4. **aggregate** per controller the mean and the interquartile mean of the objective (and
+   of the mean Cd where the env reports it), each with a 95 % stratified-bootstrap interval
+   (:mod:`gymprecice_tutorials.benchmark_stats`), into ``results.md``, ``results.csv`` and
+   ``results.json``, and draw ``return_wallclock.png`` (training return against wall-clock,
+   mean over seeds with a 95 % band) and ``objective_per_start.png``.
+
+Everything that decides the numbers is recorded in ``<out>/benchmark.json``; a rerun with
+other settings is refused before anything runs (``--fresh`` starts over). Bad input
+(no held-out starts, an algorithm that does not fit the action space, a training flag an
+algorithm does not have) is refused before anything trains.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import shlex
+import shutil
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from gymprecice_tutorials.benchmark_stats import estimate
+from gymprecice_tutorials.environments import TutorialEnv, find_environment
+from gymprecice_tutorials.hyperparams import ALGORITHMS
+
+__all__ = [
+    "BenchmarkError",
+    "benchmark_command",
+    "check_algorithm_fits",
+    "parse_algorithms",
+    "parse_train_args",
+    "train_argv",
+    "write_tables",
+]
+
+SETTINGS_NAME = "benchmark.json"
+#: the statistics reported for every metric
+STATISTICS = ("mean", "iqm")
+
+
+class BenchmarkError(SystemExit):
+    """Bad input or a failed seed: one line on stderr, exit status 2 (input) or 1."""
+
+    def __init__(self, message: str, status: int = 2) -> None:
+        print(f"gymprecice benchmark: {message}", file=sys.stderr)
+        super().__init__(status)
+
+
+# -- parsing and checks ---------------------------------------------------------------------
+
+
+def parse_algorithms(text: str) -> list[str]:
+    """``"ppo,sac"`` -> ``["ppo", "sac"]``; unknown or repeated names are refused."""
+    algos = [a.strip().lower() for a in text.split(",") if a.strip()]
+    unknown = [a for a in algos if a not in ALGORITHMS]
+    if not algos or unknown:
+        raise BenchmarkError(
+            f"--algo {text!r}: {'unknown ' + ', '.join(unknown) if unknown else 'none given'}; "
+            f"choose from {', '.join(ALGORITHMS)} (comma-separated)"
+        )
+    if len(set(algos)) != len(algos):
+        raise BenchmarkError(f"--algo {text!r} names an algorithm twice")
+    return algos
+
+
+def parse_train_args(given: Sequence[str], algos: Sequence[str]) -> dict[str, list[str]]:
+    """``--train-args`` values (``"FLAGS"`` for every algorithm, ``"ALGO: FLAGS"`` for one)
+    as each algorithm's extra ``gymprecice train`` arguments."""
+    out: dict[str, list[str]] = {algo: [] for algo in algos}
+    for text in given:
+        head, sep, rest = text.partition(":")
+        if sep and head.strip().lower() in ALGORITHMS and not head.strip().startswith("-"):
+            algo = head.strip().lower()
+            if algo not in out:
+                raise BenchmarkError(
+                    f"--train-args {text!r} is for {algo}, which --algo does not name"
+                )
+            out[algo] += shlex.split(rest)
+        else:
+            for algo in algos:
+                out[algo] += shlex.split(text)
+    owned = {"--algo", "--seed", "--out", "--timesteps", "--n-envs", "--fresh", "--double"}
+    for algo, flags in out.items():
+        clash = sorted({f.split("=", 1)[0] for f in flags} & owned)
+        if clash:
+            raise BenchmarkError(
+                f"--train-args for {algo} sets {', '.join(clash)}, which the benchmark sets "
+                "itself; use the benchmark's own option"
+            )
+    return out
+
+
+def check_algorithm_fits(algo: str, space: gym.Space) -> None:
+    """Refuse an algorithm that cannot act in ``space`` (before anything trains)."""
+    box = isinstance(space, gym.spaces.Box)
+    if algo in ("sac", "td3"):
+        if not box:
+            raise BenchmarkError(
+                f"--algo {algo}: {algo.upper()} acts only in a continuous Box action space; "
+                f"this env's is {space}; use --algo ppo"
+            )
+        if not (np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))):
+            raise BenchmarkError(
+                f"--algo {algo}: {algo.upper()} squashes its actions into the action bounds, "
+                f"and this env's Box is unbounded ({space}); bound the action space or use "
+                "--algo ppo"
+            )
+    elif not isinstance(
+        space,
+        (gym.spaces.Box, gym.spaces.Discrete, gym.spaces.MultiDiscrete, gym.spaces.MultiBinary),
+    ):
+        raise BenchmarkError(
+            f"--algo {algo}: {algo.upper()} cannot act in this env's action space {space}"
+        )
+
+
+def _check_baselines_fit(space: gym.Space) -> None:
+    if not (
+        isinstance(space, gym.spaces.Box)
+        and np.all(np.isfinite(space.low))
+        and np.all(np.isfinite(space.high))
+    ):
+        raise BenchmarkError(
+            f"the classical baselines (constants, sinusoids, feedback) need a bounded Box "
+            f"action space, this env's is {space}; add --no-baselines"
+        )
+
+
+# -- the sub-commands, through their own parsers ----------------------------------------------
+
+
+def _parse(argv: Sequence[str]) -> argparse.Namespace:
+    """``argv`` parsed exactly as ``gymprecice ARGV`` would parse it (same defaults)."""
+    from gymprecice_tutorials.cli import add_commands
+
+    parser = argparse.ArgumentParser(prog="gymprecice")
+    sub = parser.add_subparsers(dest="command")
+    add_commands(sub)
+    return parser.parse_args(list(argv))
+
+
+def _common(args: argparse.Namespace, episode_time: float | None) -> list[str]:
+    argv = []
+    if args.double:
+        argv.append("--double")
+    if args.require_solvers:
+        argv.append("--require-solvers")
+    if episode_time is not None:
+        argv += ["--episode-time", repr(float(episode_time))]
+    if args.env_kwargs:
+        argv += ["--env-kwargs", json.dumps(args.env_kwargs)]
+    return argv
+
+
+def train_argv(
+    args: argparse.Namespace, algo: str, seed: int, out: Path, extra: list[str]
+) -> list[str]:
+    return [
+        "train",
+        args.env,
+        "--algo",
+        algo,
+        "--seed",
+        str(seed),
+        "--timesteps",
+        str(args.timesteps),
+        "--n-envs",
+        str(args.n_envs),
+        "--out",
+        str(out),
+        "--no-progress-bar",
+        *_common(args, args.episode_time),
+        *extra,
+    ]
+
+
+# -- the run ---------------------------------------------------------------------------------
+
+
+def _settings(args: argparse.Namespace, env: TutorialEnv, algos: list[str], extra: dict) -> dict:
+    """Everything that decides the benchmark's numbers (compared on a resume)."""
+    return {
+        "env": env.name,
+        "env_id": env.env_id,
+        "algos": algos,
+        "seeds": list(range(args.seeds)),
+        "timesteps": args.timesteps,
+        "n_envs": args.n_envs,
+        "train_args": extra,
+        "episode_time": args.episode_time,
+        "eval_time": args.eval_time,
+        "env_kwargs": args.env_kwargs or {},
+        "double": bool(args.double),
+        "baselines": None
+        if args.no_baselines
+        else {
+            "constants": args.constants,
+            "amplitudes": args.amplitudes,
+            "frequencies": args.frequencies,
+            "feedback_gains": args.feedback_gains,
+            "feedback_delays": args.feedback_delays,
+            "feedback_signal": args.feedback_signal,
+        },
+        "bootstrap_reps": args.bootstrap_reps,
+    }
+
+
+def _lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
+    """Write ``benchmark.json``, or refuse a rerun whose settings differ from it."""
+    path = out / SETTINGS_NAME
+    if fresh and out.exists():
+        for name in ("train", "eval", "baselines"):
+            shutil.rmtree(out / name, ignore_errors=True)
+        path.unlink(missing_ok=True)
+    if path.is_file():
+        saved = json.loads(path.read_text())
+        changed = [
+            f"{key} is {json.dumps(settings.get(key))} now but {json.dumps(saved.get(key))} "
+            f"in the benchmark being resumed"
+            for key in sorted(set(saved) | set(settings))
+            if json.dumps(saved.get(key), sort_keys=True)
+            != json.dumps(settings.get(key), sort_keys=True)
+        ]
+        if changed:
+            raise BenchmarkError(
+                f"cannot resume {out} with other settings: {'; '.join(changed)}. Rerun with "
+                f"the settings in {path}, choose another --out, or add --fresh to start over"
+            )
+    out.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(settings, indent=2) + "\n")
+
+
+def _trained(run: Path, timesteps: int) -> bool:
+    """Whether ``run`` holds a finished training of at least ``timesteps`` steps."""
+    try:
+        result = json.loads((run / "manifest.json").read_text()).get("result") or {}
+    except (OSError, ValueError):
+        return False
+    return (
+        (run / "model.zip").is_file()
+        and not result.get("interrupted")
+        and int(result.get("timesteps") or 0) >= timesteps
+    )
+
+
+def _train_once(argv: list[str]) -> int:
+    """One ``gymprecice train`` (its exit status); an exception is a failed training."""
+    ns = _parse(argv)
+    return int(ns.func(ns) or 0)
+
+
+def _train_seed(argv: list[str], run: Path, label: str, retries: int) -> None:
+    """Train one seed, re-running a failed attempt up to ``retries`` times (a rerun
+    resumes from the attempt's newest checkpoint)."""
+    failures: list[str] = []
+    for attempt in range(retries + 1):
+        try:
+            status = _train_once(argv)
+        except Exception as exc:  # a crashed training: report, then run it again
+            status, reason = 1, f"{type(exc).__name__}: {exc}"
+        else:
+            reason = f"exit status {status}"
+        if status == 0:
+            return
+        if status > 128:  # stopped by a signal (Ctrl-C, SIGTERM): the user's, not a failure
+            raise BenchmarkError(
+                f"{label}: training stopped by a signal ({reason}); run the same command "
+                "again to resume",
+                status,
+            )
+        failures.append(f"attempt {attempt + 1}: {reason}")
+        print(
+            f"gymprecice benchmark: {label}: training failed ({reason})"
+            + ("; running it again" if attempt < retries else ""),
+            file=sys.stderr,
+            flush=True,
+        )
+    run.mkdir(parents=True, exist_ok=True)
+    (run / "benchmark-failures.json").write_text(json.dumps(failures, indent=2) + "\n")
+    raise BenchmarkError(
+        f"{label}: training failed {len(failures)} time(s) ({'; '.join(failures)}); no table "
+        f"is written without it (see {run}); fix the cause and run the same command again "
+        "(finished seeds are kept)",
+        1,
+    )
+
+
+def _evaluated(run: Path, model: Path) -> bool:
+    from gymprecice_tutorials.manifest import file_sha256
+
+    try:
+        manifest = json.loads((run / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return (run / "summary.json").is_file() and manifest.get("settings", {}).get(
+        "model_sha256"
+    ) == file_sha256(model)
+
+
+def _run_command(argv: list[str], what: str) -> None:
+    ns = _parse(argv)
+    status = int(ns.func(ns) or 0)
+    if status:
+        raise BenchmarkError(f"{what} failed (exit status {status})", 1)
+
+
+# -- reading results -----------------------------------------------------------------------
+
+
+def _scores(summary: dict[str, Any], env: TutorialEnv, starts: int) -> dict[str, list[float]]:
+    """Per held-out start (in index order) the objective and, if recorded, the mean Cd."""
+    from gymprecice_tutorials.sweep import objective
+
+    episodes = sorted(summary["episodes"], key=lambda e: int(e.get("start", e["episode"])))
+    if len(episodes) != starts:
+        raise BenchmarkError(
+            f"an evaluation has {len(episodes)} episode(s) for {starts} held-out start(s); "
+            "rerun with --fresh",
+            1,
+        )
+    out = {"objective": [objective(env, e) for e in episodes]}
+    if all(e.get("series_mean_Cd") is not None for e in episodes):
+        out["mean_Cd"] = [float(e["series_mean_Cd"]) for e in episodes]
+    return out
+
+
+def _controller(label: str, kind: str, runs: list[dict[str, list[float]]], reps: int) -> dict:
+    metrics = [m for m in runs[0] if all(m in r for r in runs)]
+    entry: dict[str, Any] = {"label": label, "kind": kind, "runs": len(runs), "metrics": {}}
+    for metric in metrics:
+        matrix = np.array([r[metric] for r in runs], dtype=float)
+        entry["metrics"][metric] = {
+            "scores": matrix.tolist(),
+            **{s: estimate(matrix, s, reps=reps).as_dict() for s in STATISTICS},
+        }
+    return entry
+
+
+def _fmt(e: dict[str, Any]) -> str:
+    if e["runs"] < 2:
+        return f"{e['value']:.4g}"
+    return f"{e['value']:.4g} [{e['low']:.4g}, {e['high']:.4g}]"
+
+
+def write_tables(
+    out: Path, env: TutorialEnv, starts: Sequence[str], controllers: list[dict]
+) -> None:
+    """``results.json`` (every score), ``results.csv`` and ``results.md``."""
+    metrics = list(dict.fromkeys(m for c in controllers for m in c["metrics"]))
+    (out / "results.json").write_text(
+        json.dumps(
+            {"env": env.env_id, "held_out_starts": list(starts), "controllers": controllers},
+            indent=2,
+        )
+        + "\n"
+    )
+    fields = ["controller", "kind", "runs", "starts"]
+    for m in metrics:
+        for s in STATISTICS:
+            fields += [f"{m}_{s}", f"{m}_{s}_low", f"{m}_{s}_high"]
+    with (out / "results.csv").open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer.writeheader()
+        for c in controllers:
+            row: dict[str, Any] = {
+                "controller": c["label"],
+                "kind": c["kind"],
+                "runs": c["runs"],
+                "starts": len(starts),
+            }
+            for m, stats in c["metrics"].items():
+                for s in STATISTICS:
+                    row[f"{m}_{s}"] = stats[s]["value"]
+                    row[f"{m}_{s}_low"] = stats[s]["low"]
+                    row[f"{m}_{s}_high"] = stats[s]["high"]
+            writer.writerow(row)
+    objective = env.objective or "negated mean reward per action"
+    lines = [
+        f"# Benchmark: {env.env_id}",
+        "",
+        f"Objective: {objective} (lower is better), from each of the {len(starts)} held-out "
+        f"start(s) ({'; '.join(starts)}). Mean and interquartile mean (IQM) over every seed x "
+        "start score, with a 95 % stratified-bootstrap interval over seeds "
+        "(strata: the starts); a controller run once (runs = 1) has no interval.",
+        "",
+        "| controller | kind | runs | "
+        + " | ".join(f"{m} {s}" for m in metrics for s in STATISTICS)
+        + " |",
+        "| --- | --- | --- | " + " | ".join("---" for _ in metrics for _ in STATISTICS) + " |",
+    ]
+    for c in controllers:
+        cells = [
+            _fmt(c["metrics"][m][s]) if m in c["metrics"] else ""
+            for m in metrics
+            for s in STATISTICS
+        ]
+        lines.append(f"| {c['label']} | {c['kind']} | {c['runs']} | " + " | ".join(cells) + " |")
+    (out / "results.md").write_text("\n".join(lines) + "\n")
+
+
+# -- the command -----------------------------------------------------------------------------
+
+
+def benchmark_command(args: argparse.Namespace) -> int:
+    """``gymprecice benchmark ENV --seeds N --algo ppo[,sac] ...``."""
+    from gymprecice_tutorials.envs import make_env_checked
+    from gymprecice_tutorials.starts import NoHeldOutStarts, require_held_out_starts
+    from gymprecice_tutorials.train import _params, build_env_kwargs, default_out
+
+    try:
+        env = find_environment(args.env)
+    except KeyError as exc:
+        raise BenchmarkError(exc.args[0]) from None
+    if args.ray:
+        raise BenchmarkError(
+            "--ray is not implemented yet: run the seeds on one machine (or one benchmark "
+            "per node with its own --out); see docs/benchmark.md"
+        )
+    algos = parse_algorithms(args.algo)
+    extra = parse_train_args(args.train_args, algos)
+    out = (args.out or default_out(env, "benchmark")).resolve()
+
+    # -- everything that can be refused is refused before anything trains
+    for algo in algos:
+        _params(_parse(train_argv(args, algo, 0, out / "check", extra[algo])), env, out)
+    rollout = _parse(["baseline", args.env, *_common(args, args.eval_time)])
+    kwargs = build_env_kwargs(rollout, env, out / "check")
+    probe = make_env_checked(env.name, env.env_id, 0, kwargs, rescale=False)
+    try:
+        starts = require_held_out_starts(probe, env)
+        space = probe.action_space
+    except NoHeldOutStarts as exc:
+        raise BenchmarkError(str(exc)) from None
+    finally:
+        probe.close()
+    for algo in algos:
+        check_algorithm_fits(algo, space)
+    if not args.no_baselines:
+        _check_baselines_fit(space)
+    settings = _settings(args, env, algos, extra)
+    settings["held_out_starts"] = list(starts)
+    _lock_settings(out, settings, args.fresh)
+    shutil.rmtree(out / "check", ignore_errors=True)
+    print(
+        f"gymprecice benchmark: {env.name}: {', '.join(a.upper() for a in algos)} x "
+        f"{args.seeds} seed(s), {args.timesteps:,} steps each, evaluated from "
+        f"{len(starts)} held-out start(s); output in {out}",
+        flush=True,
+    )
+
+    # -- 1. training, every seed
+    for algo in algos:
+        for seed in range(args.seeds):
+            run = out / "train" / algo / f"seed_{seed}"
+            label = f"{algo} seed {seed}"
+            if _trained(run, args.timesteps):
+                print(f"gymprecice benchmark: {label}: trained already, kept", flush=True)
+                continue
+            _train_seed(train_argv(args, algo, seed, run, extra[algo]), run, label, args.retries)
+
+    # -- 2. evaluation from every held-out start
+    rollout_common = _common(args, args.eval_time)
+    controllers: list[dict[str, Any]] = []
+    for algo in algos:
+        runs = []
+        for seed in range(args.seeds):
+            train_dir = out / "train" / algo / f"seed_{seed}"
+            run = out / "eval" / algo / f"seed_{seed}"
+            if not _evaluated(run, train_dir / "model.zip"):
+                argv = ["evaluate", args.env, "--policy", str(train_dir), "--all-starts"]
+                _run_command(
+                    [*argv, "--out", str(run), *rollout_common], f"evaluating {algo} seed {seed}"
+                )
+            summary = json.loads((run / "summary.json").read_text())
+            runs.append(_scores(summary, env, len(starts)))
+        controllers.append(_controller(algo.upper(), "learned", runs, args.bootstrap_reps))
+
+    # -- 3. classical baselines on the same starts
+    if not args.no_baselines:
+        sweep_dir = out / "baselines"
+        if not (sweep_dir / "sweep.json").is_file():
+            argv = [
+                "sweep",
+                args.env,
+                "--episodes",
+                str(len(starts)),
+                "--constants",
+                str(args.constants),
+                # NAME=VALUE: a grid may start with a minus sign
+                f"--amplitudes={args.amplitudes}",
+                f"--frequencies={args.frequencies}",
+                f"--feedback-gains={args.feedback_gains}",
+                f"--feedback-delays={args.feedback_delays}",
+                "--out",
+                str(sweep_dir),
+                *rollout_common,
+            ]
+            if args.feedback_signal:
+                argv.append(f"--feedback-signal={args.feedback_signal}")
+            _run_command(argv, "the baselines' sweep")
+        sweep = json.loads((sweep_dir / "sweep.json").read_text())
+        chosen = [("uncontrolled", "uncontrolled", None)]
+        for kind in ("constant", "sinusoid", "feedback"):
+            row = sweep.get(f"best_{kind}")
+            if row:
+                chosen.append((f"best {kind}: {row['label']}", kind, row["label"]))
+        for title, kind, label in chosen:
+            run = sweep_dir / (label or "uncontrolled")
+            summary = json.loads((run / "summary.json").read_text())
+            scores = _scores(summary, env, len(starts))
+            controllers.append(_controller(title, kind, [scores], args.bootstrap_reps))
+
+    # -- 4. tables and figures
+    write_tables(out, env, starts, controllers)
+    from gymprecice_tutorials.benchmark_plots import plot_objective_per_start, plot_return_wallclock
+
+    plot_return_wallclock(out, algos, args.seeds)
+    plot_objective_per_start(out / "objective_per_start.png", starts, controllers)
+    from gymprecice_tutorials.manifest import write_manifest
+
+    write_manifest(out, command="benchmark", settings=settings, seeds={"seeds": settings["seeds"]})
+    print((out / "results.md").read_text())
+    print(
+        f"gymprecice benchmark: wrote {out / 'results.md'}, results.csv, results.json, "
+        "return_wallclock.png and objective_per_start.png"
+    )
+    return 0
