@@ -448,15 +448,20 @@ def benchmark_command(args: argparse.Namespace) -> int:
     for algo in algos:
         _params(_parse(train_argv(args, algo, 0, out / "check", extra[algo])), env, out)
     rollout = _parse(["baseline", args.env, *_common(args, args.eval_time)])
-    kwargs = build_env_kwargs(rollout, env, out / "check")
-    probe = make_env_checked(env.name, env.env_id, 0, kwargs, rescale=False)
     try:
-        starts = require_held_out_starts(probe, env)
-        space = probe.action_space
+        # the evaluation's env, built (no solver starts before a reset) to read its
+        # held-out starts and action space
+        kwargs = build_env_kwargs(rollout, env, out / "check")
+        probe = make_env_checked(env.name, env.env_id, 0, kwargs, rescale=False)
+        try:
+            starts = require_held_out_starts(probe, env)
+            space = probe.action_space
+        finally:
+            probe.close()
     except NoHeldOutStarts as exc:
         raise BenchmarkError(str(exc)) from None
     finally:
-        probe.close()
+        shutil.rmtree(out / "check", ignore_errors=True)
     for algo in algos:
         check_algorithm_fits(algo, space)
     if not args.no_baselines:
@@ -464,7 +469,6 @@ def benchmark_command(args: argparse.Namespace) -> int:
     settings = _settings(args, env, algos, extra)
     settings["held_out_starts"] = list(starts)
     _lock_settings(out, settings, args.fresh)
-    shutil.rmtree(out / "check", ignore_errors=True)
     print(
         f"gymprecice benchmark: {env.name}: {', '.join(a.upper() for a in algos)} x "
         f"{args.seeds} seed(s), {args.timesteps:,} steps each, evaluated from "

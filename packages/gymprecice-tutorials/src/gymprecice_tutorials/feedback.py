@@ -8,8 +8,9 @@ bounded ``Box`` action::
     a(t) = clip(centre - gain * half_range * s(t - delay))
 
 with ``s`` one of the env's ``info["metrics"]`` (the cylinders' ``Cl``: the lift the
-reward measures over the last action), ``delay`` a whole number of actions (the phase
-shift: ``2 pi f delay * action_time`` at the shedding frequency ``f``), ``gain`` in
+reward measures over the last action), ``delay`` a whole number of actions (0: the signal
+the last action produced; the phase shift ``2 pi f delay * action_time`` at the shedding
+frequency ``f``; zero until that many actions have been taken), ``gain`` in
 fractions of the action's half range per unit of the signal and ``centre`` a fraction of
 the box (0.5: its middle, zero for the cylinders). It sees what a policy could see: the
 signal of actions already taken, never the coming one.

@@ -1,0 +1,285 @@
+"""``gymprecice benchmark`` on the test double: seeds trained and resumed, every held-out
+start evaluated, baselines on the same starts, intervals, tables and figures; bad input
+refused before anything trains; a failed seed re-run, never dropped."""
+
+from __future__ import annotations
+
+import csv
+import json
+from typing import Any
+
+import numpy as np
+import pytest
+from gymnasium.spaces import Box, Discrete
+
+from gymprecice.cli import main
+from gymprecice_tutorials import benchmark
+from gymprecice_tutorials.benchmark import BenchmarkError, check_algorithm_fits, parse_algorithms
+from gymprecice_tutorials.benchmark_stats import estimate, iqm
+from gymprecice_tutorials.feedback import FeedbackController
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+TINY = [
+    "jet-cylinder-fast",
+    "--double",
+    "--seeds",
+    "2",
+    "--algo",
+    "ppo",
+    "--timesteps",
+    "16",
+    "--episode-time",
+    "0.1",
+    "--eval-time",
+    "0.15",
+    "--train-args",
+    "--n-steps 8 --batch-size 8 --net 8,8 --vec-env dummy",
+    "--constants",
+    "2",
+    "--amplitudes",
+    "1",
+    "--frequencies",
+    "3",
+    "--feedback-gains=-1,1",
+    "--feedback-delays",
+    "0,3",
+    "--bootstrap-reps",
+    "200",
+]
+
+
+def _no_training(argv: list[str]) -> int:
+    raise AssertionError(f"nothing may train here, but train ran: {argv}")
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """One benchmark whose seed 1 fails its first training attempt."""
+    out = tmp_path_factory.mktemp("bench") / "run"
+    real = benchmark._train_once
+    calls: list[str] = []
+
+    def flaky(argv: list[str]) -> int:
+        seed = argv[argv.index("--seed") + 1]
+        calls.append(seed)
+        if seed == "1" and calls.count("1") == 1:
+            raise RuntimeError("solver crashed (injected)")
+        return real(argv)
+
+    patch = pytest.MonkeyPatch()
+    patch.setattr(benchmark, "_train_once", flaky)
+    try:
+        status = main(["benchmark", *TINY, "--out", str(out)])
+    finally:
+        patch.undo()
+    return {"out": out, "status": status, "calls": calls}
+
+
+@pytest.mark.timeout(600)
+def test_every_seed_trains_with_its_manifest_and_a_failed_seed_is_run_again(bench) -> None:
+    assert bench["status"] == 0
+    # seed 1 failed once and was run again; nothing was dropped
+    assert bench["calls"] == ["0", "1", "1"]
+    for seed in (0, 1):
+        manifest = json.loads((bench["out"] / f"train/ppo/seed_{seed}/manifest.json").read_text())
+        assert manifest["seeds"]["seed"] == seed
+        assert manifest["result"]["timesteps"] >= 16
+    results = json.loads((bench["out"] / "results.json").read_text())
+    ppo = next(c for c in results["controllers"] if c["label"] == "PPO")
+    assert ppo["runs"] == 2
+    assert np.asarray(ppo["metrics"]["objective"]["scores"]).shape == (2, 2)
+
+
+def test_every_policy_is_evaluated_from_every_held_out_start(bench) -> None:
+    results = json.loads((bench["out"] / "results.json").read_text())
+    assert results["held_out_starts"] == ["t = 4.82 s", "t = 4.98 s"]
+    for seed in (0, 1):
+        summary = json.loads((bench["out"] / f"eval/ppo/seed_{seed}/summary.json").read_text())
+        assert [e["start"] for e in summary["episodes"]] == [0, 1]
+        assert [e["start_label"] for e in summary["episodes"]] == results["held_out_starts"]
+
+
+def test_baselines_run_on_the_same_starts_and_the_best_of_each_kind_is_reported(bench) -> None:
+    results = json.loads((bench["out"] / "results.json").read_text())
+    kinds = [c["kind"] for c in results["controllers"]]
+    assert kinds == ["learned", "uncontrolled", "constant", "sinusoid", "feedback"]
+    sweep = json.loads((bench["out"] / "baselines/sweep.json").read_text())
+    feedback = [r for r in sweep["controllers"] if r["kind"] == "feedback"]
+    assert len(feedback) == 4  # gains x delays
+    best = min(feedback, key=lambda r: r["mean"])
+    entry = results["controllers"][-1]
+    assert entry["label"] == f"best feedback: {best['label']}"
+    assert entry["metrics"]["objective"]["mean"]["value"] == pytest.approx(best["mean"])
+    for c in results["controllers"][1:]:
+        assert c["runs"] == 1 and len(c["metrics"]["objective"]["scores"][0]) == 2
+
+
+def test_intervals_contain_their_estimate_and_the_tables_agree(bench) -> None:
+    results = json.loads((bench["out"] / "results.json").read_text())
+    with (bench["out"] / "results.csv").open() as handle:
+        rows = {r["controller"]: r for r in csv.DictReader(handle)}
+    markdown = (bench["out"] / "results.md").read_text()
+    for c in results["controllers"]:
+        for metric, stats in c["metrics"].items():
+            scores = np.asarray(stats["scores"])
+            assert stats["mean"]["value"] == pytest.approx(scores.mean())
+            assert stats["iqm"]["value"] == pytest.approx(float(iqm(scores.reshape(-1))))
+            for s in ("mean", "iqm"):
+                assert stats[s]["low"] <= stats[s]["value"] <= stats[s]["high"]
+                assert float(rows[c["label"]][f"{metric}_{s}"]) == pytest.approx(stats[s]["value"])
+        assert f"| {c['label']} | {c['kind']} | {c['runs']} |" in markdown
+    assert float(rows["PPO"]["mean_Cd_iqm"]) > 0  # the cylinders' mean Cd, beside the objective
+
+
+def test_figures_are_written(bench) -> None:
+    for name in ("return_wallclock.png", "objective_per_start.png"):
+        assert (bench["out"] / name).read_bytes().startswith(PNG_SIGNATURE)
+
+
+def test_a_resumed_benchmark_keeps_finished_seeds(bench, monkeypatch, capsys) -> None:
+    before = (bench["out"] / "results.json").read_text()
+    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    assert main(["benchmark", *TINY, "--out", str(bench["out"])]) == 0
+    assert "ppo seed 1: trained already, kept" in capsys.readouterr().out
+    assert json.loads((bench["out"] / "results.json").read_text()) == json.loads(before)
+
+
+def test_a_resumed_benchmark_with_other_settings_is_refused(bench, monkeypatch, capsys) -> None:
+    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    changed = [*TINY, "--out", str(bench["out"])]
+    changed[changed.index("--timesteps") + 1] = "32"
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", *changed])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "cannot resume" in err and "timesteps is 32 now but 16" in err and "--fresh" in err
+
+
+def test_a_seed_that_keeps_failing_stops_the_benchmark_without_a_table(
+    tmp_path, monkeypatch, capsys
+) -> None:
+    def broken(argv: list[str]) -> int:
+        raise RuntimeError("solver crashed (injected)")
+
+    monkeypatch.setattr(benchmark, "_train_once", broken)
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", *TINY, "--retries", "2", "--out", str(tmp_path / "b")])
+    assert exc.value.code == 1
+    err = capsys.readouterr().err
+    assert err.count("ppo seed 0: training failed") == 4  # 3 reports, then the verdict
+    assert "no table is written" in err
+    assert not (tmp_path / "b/results.md").exists()
+    failures = json.loads((tmp_path / "b/train/ppo/seed_0/benchmark-failures.json").read_text())
+    assert len(failures) == 3
+
+
+# -- bad input, refused before anything trains ------------------------------------------------
+
+
+def test_zero_seeds_is_refused(capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", "jet-cylinder-fast", "--double", "--seeds", "0"])
+    assert exc.value.code == 2
+    assert "--seeds: must be at least 1, got 0" in capsys.readouterr().err
+
+
+def test_an_env_without_held_out_starts_is_refused(tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", "quickstart", "--double", "--out", str(tmp_path / "b")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "quickstart has no held-out starts" in err and "jet-cylinder-fast" in err
+    assert not (tmp_path / "b/train").exists()
+
+
+def test_evaluate_all_starts_on_an_env_without_them_is_refused(tmp_path, capsys) -> None:
+    argv = ["baseline", "quickstart", "--double", "--all-starts", "--out", str(tmp_path / "b")]
+    assert main(argv) == 2
+    assert "quickstart has no held-out starts" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("algo", "space", "message"),
+    [
+        ("sac", Discrete(3), "SAC acts only in a continuous Box"),
+        ("td3", Box(-np.inf, np.inf, (1,)), "unbounded"),
+    ],
+)
+def test_an_algorithm_that_does_not_fit_the_action_space_is_refused(
+    algo, space, message, capsys
+) -> None:
+    with pytest.raises(BenchmarkError):
+        check_algorithm_fits(algo, space)
+    assert message in capsys.readouterr().err
+
+
+def test_an_algorithm_that_fits_passes() -> None:
+    for algo in ("ppo", "sac", "td3"):
+        check_algorithm_fits(algo, Box(-1.0, 1.0, (1,)))
+    check_algorithm_fits("ppo", Discrete(3))
+
+
+def test_an_unknown_algorithm_is_refused_naming_the_choices(capsys) -> None:
+    with pytest.raises(BenchmarkError):
+        parse_algorithms("ppo,dqn")
+    assert "unknown dqn; choose from ppo, sac, td3" in capsys.readouterr().err
+
+
+def test_a_training_flag_the_algorithm_lacks_is_refused_before_training(
+    tmp_path, monkeypatch
+) -> None:
+    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    argv = ["benchmark", "jet-cylinder-fast", "--double", "--algo", "ppo,sac"]
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--train-args", "--n-steps 8", "--out", str(tmp_path / "b")])
+    assert "--n-steps is a PPO setting; SAC has none" in str(exc.value.code)
+    assert not (tmp_path / "b/train").exists()
+
+
+# -- the statistics and the feedback law ------------------------------------------------------
+
+
+def test_the_bootstrap_is_stratified_by_start() -> None:
+    # start 0 scores about 0, start 1 about 10: resampling seeds within each start keeps
+    # one of each in every resample, so the mean never strays far from 5
+    rng = np.random.default_rng(0)
+    scores = np.column_stack([rng.normal(0, 0.1, 5), rng.normal(10, 0.1, 5)])
+    for statistic in ("mean", "iqm"):
+        e = estimate(scores, statistic, reps=500)
+        assert 4.8 < e.low <= e.value <= e.high < 5.2
+
+
+def test_a_controller_run_once_has_no_interval_and_nan_is_refused() -> None:
+    e = estimate(np.array([[1.0, 2.0, 3.0]]), "mean")
+    assert (e.value, e.low, e.high, e.runs) == (2.0, 2.0, 2.0, 1)
+    with pytest.raises(ValueError, match="NaN"):
+        estimate(np.array([[1.0, np.nan], [1.0, 2.0]]), "iqm")
+
+
+def test_iqm_is_the_mean_of_the_middle_half() -> None:
+    assert float(iqm(np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 100.0]))) == pytest.approx(3.5)
+
+
+def test_feedback_acts_on_the_signal_of_delay_actions_ago() -> None:
+    law = FeedbackController(Box(-2.0, 2.0, (1,)), "Cl", gain=0.5, delay=2)
+    actions = []
+    for cl in (1.0, -1.0, 4.0, 0.0):
+        actions.append(float(law(None, 0.0)[0]))
+        law.observe({"metrics": {"Cl": cl}})
+    # delay 0 would feed back the last action's Cl; delay 2 the one two actions before:
+    # nothing measured that long ago for the first three actions, then -0.5 * 2 * Cl
+    assert actions == pytest.approx([0.0, 0.0, 0.0, -1.0])
+    assert float(law(None, 0.0)[0]) == pytest.approx(1.0)  # Cl = -1 two actions back
+    law.observe({"metrics": {"Cl": 0.0}})
+    assert float(law(None, 0.0)[0]) == pytest.approx(-2.0)  # Cl = 4: -4 clipped to the bound
+    law.reset()
+    assert float(law(None, 0.0)[0]) == 0.0
+
+
+def test_feedback_refuses_a_signal_the_env_does_not_report() -> None:
+    law = FeedbackController(Box(-1.0, 1.0, (1,)), "lift", gain=1.0)
+    with pytest.raises(KeyError, match=r"'lift' is not among this env's metrics \(Cd, Cl\)"):
+        law.observe({"metrics": {"Cd": 3.0, "Cl": 0.1}})
+    with pytest.raises(TypeError, match="bounded Box"):
+        FeedbackController(Discrete(2), "Cl", gain=1.0)
