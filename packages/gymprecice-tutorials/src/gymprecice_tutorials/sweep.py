@@ -3,7 +3,8 @@
 A trained policy is worth something only if it beats what needs no learning: the
 uncontrolled flow, the best *constant* actuation and the best *open-loop sinusoid*. This
 command runs all of them on the environment's held-out starts (``split="eval"``, the starts
-that ``evaluate`` uses) and writes, under ``--out``:
+that ``evaluate`` uses; episode k from held-out start k, as ``evaluate --all-starts``) and
+writes, under ``--out``:
 
 * ``<label>/``: each controller's rollout (``history.csv``, ``summary.json``), as
   ``baseline`` / ``open-loop`` write them;
@@ -102,7 +103,10 @@ def objective(env_info: TutorialEnv, episode: dict[str, Any]) -> float:
 def _run(
     env: gym.Env, controller: Any, out: Path, env_info: TutorialEnv, args: argparse.Namespace
 ) -> list[float]:
-    summary = rollout(env, controller, out, episodes=args.episodes, seed=args.seed)
+    # every controller meets the same starts: episode k runs held-out start k
+    summary = rollout(
+        env, controller, out, episodes=args.episodes, seed=args.seed, every_start=True
+    )
     return [objective(env_info, episode) for episode in summary["episodes"]]
 
 
