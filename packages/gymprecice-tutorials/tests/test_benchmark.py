@@ -8,6 +8,7 @@ import csv
 import json
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.spaces import Box, Discrete
@@ -283,3 +284,83 @@ def test_feedback_refuses_a_signal_the_env_does_not_report() -> None:
         law.observe({"metrics": {"Cd": 3.0, "Cl": 0.1}})
     with pytest.raises(TypeError, match="bounded Box"):
         FeedbackController(Discrete(2), "Cl", gain=1.0)
+
+
+# -- held-out starts ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("double", [False, True])
+def test_the_fast_cylinders_hold_out_every_fourth_snapshot(tmp_path, double) -> None:
+    from gymprecice_tutorials.fast_cases import JetCylinderFastEnv
+
+    env = JetCylinderFastEnv(run_root=tmp_path, double=double)
+    try:
+        assert env.held_out_starts == ("t = 4.82 s", "t = 4.98 s")
+    finally:
+        env.close()
+
+
+def test_an_openfoam_case_with_an_explicit_split_holds_out_its_eval_snapshots(tmp_path) -> None:
+    from gymprecice_tutorials.fast_cases import RotatingCylinderFastEnv
+
+    env = RotatingCylinderFastEnv(run_root=tmp_path)
+    try:
+        env.config.solvers[env.fluid].options["snapshots"] = {"train": [4.7], "eval": [4.9, 4.8]}
+        assert env.held_out_starts == ("t = 4.8 s", "t = 4.9 s")
+    finally:
+        env.close()
+
+
+def test_the_quickstart_has_no_held_out_starts(tmp_path) -> None:
+    from gymprecice_tutorials.quickstart.environment import QuickstartEnv
+
+    env = QuickstartEnv(run_root=tmp_path, double=True)
+    try:
+        assert env.held_out_starts == ()
+    finally:
+        env.close()
+
+
+class _Starts(gym.Env):
+    """An env with two held-out starts that records the options of every reset."""
+
+    observation_space = Box(-1.0, 1.0, (1,))
+    action_space = Box(-1.0, 1.0, (1,))
+    held_out_starts = ("a", "b")
+
+    def __init__(self) -> None:
+        self.options: list[dict] = []
+
+    def reset(self, *, seed=None, options=None):
+        self.options.append(dict(options or {}))
+        return np.zeros(1, np.float32), {}
+
+
+def test_the_eval_freq_env_takes_the_held_out_starts_in_turn() -> None:
+    from gymprecice_tutorials.starts import HeldOutStarts
+
+    inner = _Starts()
+    env = HeldOutStarts(inner)
+    for _ in range(3):
+        env.reset()  # what SB3's EvalCallback does: no options
+    env.reset(options={"split": "train"})  # a caller's options win
+    assert [o.get("start") for o in inner.options] == [0, 1, 0, 1]
+    assert [o["split"] for o in inner.options] == ["eval", "eval", "eval", "train"]
+
+
+def test_evaluations_npz_survives_a_resume(tmp_path) -> None:
+    from types import SimpleNamespace
+
+    from gymprecice_tutorials.evaluation_callback import _keep_evaluations
+
+    path = tmp_path / "evaluations.npz"
+    np.savez(
+        path, timesteps=[40, 80], results=[[1.0, 2.0], [3.0, 4.0]], ep_lengths=[[5, 5], [5, 5]]
+    )
+    callback = SimpleNamespace(
+        evaluations_timesteps=[], evaluations_results=[], evaluations_length=[]
+    )
+    _keep_evaluations(callback, path)  # type: ignore[arg-type]
+    assert callback.evaluations_timesteps == [40, 80]
+    assert callback.evaluations_results == [[1.0, 2.0], [3.0, 4.0]]
+    assert callback.evaluations_length == [[5, 5], [5, 5]]

@@ -144,6 +144,19 @@ def test_the_start_comes_from_the_split(env: PerpendicularFlapFastEnv) -> None:
     assert env.start == gust(np.random.default_rng(11), 1.0, 1.0, 3.0)
 
 
+def test_the_held_out_starts_are_the_held_out_gusts_in_order(env: PerpendicularFlapFastEnv) -> None:
+    assert len(env.held_out_starts) == len(EVAL_GUSTS) == 3
+    assert env.held_out_starts[1] == "jet 3 -> 1 m at 0.3 s"
+
+
+@pytest.mark.parametrize("start", [3, -1, "0", True])
+def test_a_start_index_outside_the_held_out_gusts_is_refused_before_anything_runs(
+    env: PerpendicularFlapFastEnv, start: object
+) -> None:
+    with pytest.raises(ValueError, match="3 held-out gusts, use 0 to 2"):
+        env.reset(seed=0, options={"split": "eval", "start": start})
+
+
 def test_uncontrolled_writes_the_reference_inflow_after_the_gust(tmp_path: Path) -> None:
     env = PerpendicularFlapFastEnv(run_root=tmp_path, uncontrolled=True)
     try:

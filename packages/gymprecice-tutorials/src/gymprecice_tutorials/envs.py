@@ -88,6 +88,7 @@ def make_env(
     monitor_file: str | None = None,
     rescale: bool = True,
     robustness: Mapping[str, Any] | None = None,
+    held_out: bool = False,
 ) -> gym.Env:
     """One environment as training and evaluation see it (module level: picklable).
 
@@ -95,11 +96,18 @@ def make_env(
     episode returns, lengths and :data:`EPISODE_KEYWORDS` with SB3's ``Monitor``.
     ``robustness`` (:mod:`gymprecice.robustness`: sensor and action noise, delay,
     dropout) sits between the policy and the rescaled env, so noise is in the policy's
-    units; the vector env's ``seed`` seeds it.
+    units; the vector env's ``seed`` seeds it. ``held_out`` makes every reset take the
+    env's held-out starts in turn (:class:`gymprecice_tutorials.starts.HeldOutStarts`: the
+    ``--eval-freq`` env).
     """
     import gymprecice  # noqa: F401  (registers the gymprecice/... ids in this process)
 
-    env: gym.Env = EpisodeMetrics(gym.make(env_id, idx=idx, **dict(kwargs)))
+    env: gym.Env = gym.make(env_id, idx=idx, **dict(kwargs))
+    if held_out:
+        from gymprecice_tutorials.starts import HeldOutStarts
+
+        env = HeldOutStarts(env)
+    env = EpisodeMetrics(env)
     space = env.action_space
     if (
         rescale

@@ -2,10 +2,12 @@
 
 SB3's ``EvalCallback`` runs ``--n-eval-episodes`` on an env of its own (index
 ``n_envs``, so its own run directory, and seeds the training envs never get) and saves
-``best_model.zip`` whenever the mean return beats the best so far. Added here: the
-best score survives a resume (``eval/best.json``), and with ``--normalize`` the
-normalisation statistics are saved beside the best model, which would be unusable
-without them.
+``best_model.zip`` whenever the mean return beats the best so far. Added here: its env
+starts every episode from the held-out split, the held-out starts in turn
+(:class:`~gymprecice_tutorials.starts.HeldOutStarts`; ``--n-eval-episodes`` equal to their
+number runs each once per evaluation), the best score and ``eval/evaluations.npz``
+survive a resume (``eval/best.json``), and with ``--normalize`` the normalisation
+statistics are saved beside the best model, which would be unusable without them.
 """
 
 from __future__ import annotations
@@ -63,7 +65,12 @@ def eval_callback(
 
     (out / "eval").mkdir(parents=True, exist_ok=True)
     fn = functools.partial(
-        make_env, env.env_id, n_envs, dict(env_kwargs), monitor_file=str(out / "eval" / "env")
+        make_env,
+        env.env_id,
+        n_envs,
+        dict(env_kwargs),
+        monitor_file=str(out / "eval" / "env"),
+        held_out=True,
     )
     eval_env: Any = DummyVecEnv([fn])
     eval_env.seed(seed + EVAL_SEED_OFFSET)
@@ -85,4 +92,21 @@ def eval_callback(
         callback.best_mean_reward = float(previous["mean_return"])
     except (OSError, ValueError, KeyError):
         pass
+    _keep_evaluations(callback, out / "eval" / "evaluations.npz")
     return callback
+
+
+def _keep_evaluations(callback: EvalCallback, path: Path) -> None:
+    """Start from the evaluations a previous segment wrote: SB3 rewrites the file from
+    its own lists at every evaluation, which a resumed run would start empty."""
+    import numpy as np
+
+    if not path.is_file():
+        return
+    try:
+        with np.load(path) as data:
+            callback.evaluations_timesteps = [int(t) for t in data["timesteps"]]
+            callback.evaluations_results = [list(r) for r in data["results"]]
+            callback.evaluations_length = [list(n) for n in data["ep_lengths"]]
+    except (OSError, ValueError, KeyError):
+        return  # unreadable: SB3 writes a new one

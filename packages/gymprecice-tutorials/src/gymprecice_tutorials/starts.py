@@ -13,7 +13,13 @@ from typing import Any
 
 import gymnasium as gym
 
-__all__ = ["NoHeldOutStarts", "held_out_starts", "require_held_out_starts", "start_options"]
+__all__ = [
+    "HeldOutStarts",
+    "NoHeldOutStarts",
+    "held_out_starts",
+    "require_held_out_starts",
+    "start_options",
+]
 
 
 class NoHeldOutStarts(ValueError):
@@ -48,3 +54,24 @@ def require_held_out_starts(env: gym.Env, env_info: Any) -> tuple[str, ...]:
             f"your case a snapshot library (the OpenFOAM solver option 'snapshots')"
         )
     return starts
+
+
+class HeldOutStarts(gym.Wrapper):
+    """Every reset from the held-out split, the held-out starts in turn.
+
+    For an env whose resets the caller does not control (SB3's ``EvalCallback`` resets
+    its env with no options): reset k takes held-out start k (mod their number); an env
+    without held-out starts gets ``split="eval"`` alone. Options a caller does pass win.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self._starts = len(held_out_starts(env))
+        self._resets = 0
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        merged = {**start_options(self._resets, self._starts), **(options or {})}
+        self._resets += 1
+        return self.env.reset(seed=seed, options=merged)
