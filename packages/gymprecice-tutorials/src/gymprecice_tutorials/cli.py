@@ -222,8 +222,9 @@ def _train_parser(sub: Any) -> None:
         type=_positive_int,
         default=None,
         metavar="STEPS",
-        help="every this many env steps, evaluate deterministically on a separate env and "
-        "keep best_model.zip (None: no evaluation during training)",
+        help="every this many env steps, evaluate deterministically on a separate env "
+        "(from the held-out starts, in turn) and keep best_model.zip (None: no evaluation "
+        "during training)",
     )
     p.add_argument(
         "--n-eval-episodes", type=_positive_int, default=2, help="episodes per evaluation"
