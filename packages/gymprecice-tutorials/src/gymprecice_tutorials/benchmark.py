@@ -445,6 +445,12 @@ def benchmark_command(args: argparse.Namespace) -> int:
     out = (args.out or default_out(env, "benchmark")).resolve()
 
     # -- everything that can be refused is refused before anything trains
+    if not args.double:
+        from gymprecice_tutorials.requirements import require_solvers
+
+        status = require_solvers(env, "benchmark", verbose=args.require_solvers)
+        if status:
+            return status
     for algo in algos:
         _params(_parse(train_argv(args, algo, 0, out / "check", extra[algo])), env, out)
     rollout = _parse(["baseline", args.env, *_common(args, args.eval_time)])
