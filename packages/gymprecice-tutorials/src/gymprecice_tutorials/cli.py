@@ -436,14 +436,16 @@ def _benchmark_parser(sub: Any) -> None:
         "evaluate every policy deterministically from every held-out start, run the "
         "classical baselines on the same starts (uncontrolled, best constant, best "
         "open-loop sinusoid, best feedback law of a documented sweep) and write "
-        "results.md/.csv/.json (mean and interquartile mean with 95%% stratified-bootstrap "
+        "results.md/.csv/.json (mean and interquartile mean with 95 % stratified-bootstrap "
         "intervals) and two figures. Settings are recorded in benchmark.json; a rerun "
         "with other settings is refused (--fresh starts over). See docs/benchmark.md.",
     )
     p.add_argument(
         "env",
         metavar="ENV",
-        help=f"environment with held-out starts: {', '.join(ENVIRONMENTS)} (or its id)",
+        help="environment with held-out starts: "
+        + ", ".join(e.name for e in ENVIRONMENTS.values() if e.held_out_starts)
+        + " (or its id)",
     )
     p.add_argument(
         "--seeds", type=_positive_int, default=5, help="training seeds per algorithm (0..N-1)"
