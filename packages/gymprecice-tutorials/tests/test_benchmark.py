@@ -238,6 +238,24 @@ def test_a_training_flag_the_algorithm_lacks_is_refused_before_training(
     assert not (tmp_path / "b/train").exists()
 
 
+@pytest.mark.parametrize(
+    ("flag", "message"),
+    [
+        ("--frequencies=0,3", "--frequencies must be positive"),
+        ("--feedback-delays=1.5", "--feedback-delays are whole numbers"),
+        ("--amplitudes=x", "--amplitudes takes comma-separated numbers"),
+    ],
+)
+def test_a_bad_baseline_grid_is_refused_before_training(
+    tmp_path, monkeypatch, capsys, flag, message
+) -> None:
+    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", "jet-cylinder-fast", "--double", flag, "--out", str(tmp_path / "b")])
+    assert message in capsys.readouterr().err + str(exc.value.code)
+    assert not (tmp_path / "b/train").exists()
+
+
 # -- the statistics and the feedback law ------------------------------------------------------
 
 

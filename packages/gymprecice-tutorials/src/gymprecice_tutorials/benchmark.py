@@ -150,6 +150,26 @@ def _check_baselines_fit(space: gym.Space) -> None:
         )
 
 
+def _check_grids(args: argparse.Namespace, env: TutorialEnv) -> None:
+    """The sweep's grids, checked now rather than after every seed has trained."""
+    from gymprecice_tutorials.sweep import parse_grid
+
+    parse_grid(args.amplitudes, "amplitudes")
+    if any(f <= 0 for f in parse_grid(args.frequencies, "frequencies")):
+        raise BenchmarkError("--frequencies must be positive (Hz)")
+    if args.feedback_gains:
+        parse_grid(args.feedback_gains, "feedback-gains")
+        delays = parse_grid(args.feedback_delays, "feedback-delays")
+        if any(d < 0 or d != int(d) for d in delays):
+            raise BenchmarkError("--feedback-delays are whole numbers of actions >= 0")
+        if not (args.feedback_signal or env.feedback_signal):
+            raise BenchmarkError(
+                f"{env.name} has no default feedback signal; pass --feedback-signal NAME "
+                "(one of the metrics in its steps' info['metrics']) or --feedback-gains '' "
+                "(no feedback baseline)"
+            )
+
+
 # -- the sub-commands, through their own parsers ----------------------------------------------
 
 
@@ -472,6 +492,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
         check_algorithm_fits(algo, space)
     if not args.no_baselines:
         _check_baselines_fit(space)
+        _check_grids(args, env)
     settings = _settings(args, env, algos, extra)
     settings["held_out_starts"] = list(starts)
     _lock_settings(out, settings, args.fresh)
