@@ -124,6 +124,7 @@ def plot_objective_per_start(
         scores = np.asarray(c["metrics"]["objective"]["scores"], dtype=float)[0]
         ax.plot(x, scores, marker="s", linestyle="--", label=c["label"])
     ax.set_xticks(x, list(starts))
+    ax.set_xlim(-0.5, len(starts) - 0.5)
     ax.set_xlabel("held-out start")
     ax.set_ylabel("objective (lower is better)")
     ax.set_title("Objective per held-out start (dots: seeds)")
