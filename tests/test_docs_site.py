@@ -62,6 +62,14 @@ def test_a_broken_link_is_named_by_page_and_line(tmp_path: Path) -> None:
     autoref = "mkdocs_autorefs: guide.md: Could not find cross-reference target 'gymprecice.Nope'"
     (docs / "guide.md").write_text("# Guide\n\n[gymprecice.Nope][]\n")
     assert build_docs.locate(autoref, docs) == [f"docs/guide.md:3: {autoref}"]
+    # a broken reference in a docstring: placed at the source line that writes it
+    source = tmp_path / "mod.py"
+    source.write_text('"""A module.\n\nSee [the nothing][pkg.mod.Nothing].\n"""\n')
+    in_docstring = (
+        f"mkdocs_autorefs: reference/core.md: from {source}:1: (pkg.mod) "
+        "Could not find cross-reference target 'pkg.mod.Nothing'"
+    )
+    assert build_docs.locate(in_docstring, docs) == [f"{source}:3: {in_docstring}"]
     # a docstring's warning (griffe places it) comes back as it is
     griffe = "griffe: src/pkg/mod.py:12: Parameter 'x' does not appear in the function signature"
     assert build_docs.locate(griffe, docs) == [griffe]
