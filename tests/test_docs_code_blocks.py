@@ -7,7 +7,7 @@ the fake cylinder flow writing OpenFOAM-format probes and force coefficients), o
 ``<!-- docs-test: plugin -->`` (registered as a plugin and its hooks called). Blocks that
 define an env are constructed and stepped, so an example that cannot run fails here. A
 block that only includes a file (``--8<-- "examples/x.py"``) is skipped: the file is
-tested where it lives (tests/test_examples.py).
+tested where it lives (tests/test_examples.py; RLlib's in tests/test_rllib.py).
 """
 
 from __future__ import annotations
