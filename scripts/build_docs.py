@@ -38,6 +38,12 @@ _PAGE_WARNINGS = (
         r"mkdocs_autorefs: (?P<page>[^:\s]+\.md): Could not find cross-reference target '(?P<target>[^']+)'"
     ),
 )
+#: mkdocs-autorefs' warning for a docstring: the page, and the source file at the line where
+#: the object (or its docstring) begins, not the line that writes the reference
+_DOCSTRING_WARNING = re.compile(
+    r"from (?P<source>[^\s:]+\.py):(?P<line>\d+): \([^)]*\) "
+    r"Could not find cross-reference target '(?P<target>[^']+)'"
+)
 
 
 @dataclass(frozen=True)
@@ -82,10 +88,14 @@ def install_advice(missing: list[str]) -> str:
 def locate(warning: str, docs_dir: Path = DOCS) -> list[str]:
     """``docs/PAGE:LINE: warning`` for each line of the page that writes the warning's target.
 
-    A warning that names no page (a docstring's, which griffe already places) or whose
-    target is not written in the page (a cross-reference inside a rendered docstring) comes
+    A broken reference in a docstring is placed at the line of the source file that writes
+    it (mkdocs-autorefs names the line where the object begins). A warning that names no
+    page (griffe's, already placed) or whose target is not written where it points comes
     back unchanged.
     """
+    docstring = _DOCSTRING_WARNING.search(warning)
+    if docstring is not None:
+        return [_in_source(docstring, warning.strip())]
     for pattern in _PAGE_WARNINGS:
         match = pattern.search(warning)
         if match is None:
@@ -106,6 +116,21 @@ def locate(warning: str, docs_dir: Path = DOCS) -> list[str]:
             return [f"{where}:{line}: {warning.strip()}" for line in hits]
         break
     return [warning.strip()]
+
+
+def _in_source(match: re.Match[str], warning: str) -> str:
+    """``FILE:LINE: warning`` at the first line from the object's start that writes the target."""
+    source, start = Path(match["source"]), int(match["line"])
+    try:
+        lines = source.read_text().splitlines()
+    except OSError:
+        return warning
+    target = match["target"]
+    hits = [i for i, line in enumerate(lines, 1) if i >= start and target in line]
+    if not hits:
+        return warning
+    where = source.relative_to(ROOT) if source.is_relative_to(ROOT) else source
+    return f"{where}:{hits[0]}: {warning}"
 
 
 @dataclass(frozen=True)

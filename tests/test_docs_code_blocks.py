@@ -7,7 +7,7 @@ the fake cylinder flow writing OpenFOAM-format probes and force coefficients), o
 ``<!-- docs-test: plugin -->`` (registered as a plugin and its hooks called). Blocks that
 define an env are constructed and stepped, so an example that cannot run fails here. A
 block that only includes a file (``--8<-- "examples/x.py"``) is skipped: the file is
-tested where it lives (tests/test_examples.py).
+tested where it lives (tests/test_examples.py; RLlib's in tests/test_rllib.py).
 """
 
 from __future__ import annotations
@@ -116,20 +116,23 @@ def _import_block(mode: str, module: str, where: Path, monkeypatch) -> types.Mod
     return importlib.import_module(module)
 
 
-class TestReadmePluginConformance(SolverPluginConformance):
-    """The README's plugin, exactly as printed, passes the suite a plugin package runs.
+class _PrintedPluginConformance(SolverPluginConformance):
+    """A plugin printed in the docs, imported as written, through the conformance suite.
 
-    Only the entry point is not checked, since the README's ``pyproject.toml`` is not
-    installed here.
+    Only the entry point is not checked, since the printed ``pyproject.toml`` is not
+    installed here. Subclasses name the block, its module and the case it runs on.
     """
 
+    __test__ = False
     requires_entry_point = False
+    mode = module = solver_dir = case_cfg = ""
+    context: dict[str, str] = {}
 
     @pytest.fixture
     def plugin(self, tmp_path_factory: pytest.TempPathFactory, monkeypatch) -> types.ModuleType:
-        where = tmp_path_factory.mktemp("readme-plugin")
-        yield _import_block("plugin", "my_plugin", where, monkeypatch)
-        sys.modules.pop("my_plugin", None)
+        where = tmp_path_factory.mktemp(self.mode)
+        yield _import_block(self.mode, self.module, where, monkeypatch)
+        sys.modules.pop(self.module, None)
 
     @pytest.fixture
     def kind(self) -> str:
@@ -138,38 +141,28 @@ class TestReadmePluginConformance(SolverPluginConformance):
     @pytest.fixture
     def make_solver(self, kind: str):
         def make(base: Path):
-            source = base / "case" / "solver"
+            source = base / "case" / self.solver_dir
             source.mkdir(parents=True)
-            (source / "case.cfg").write_text("steps = 10\n")
-            return make_solver_context(kind, source, base)
+            (source / "case.cfg").write_text(self.case_cfg)
+            return make_solver_context(kind, source, base, **self.context)
 
         return make
 
 
-class TestPluginGuideConformance(SolverPluginConformance):
+class TestReadmePluginConformance(_PrintedPluginConformance):
+    """The README's plugin, exactly as printed, passes the suite a plugin package runs."""
+
+    __test__ = True
+    mode, module, solver_dir, case_cfg = "plugin", "my_plugin", "solver", "steps = 10\n"
+
+
+class TestPluginGuideConformance(_PrintedPluginConformance):
     """docs/writing-a-plugin.md's plugin, as printed, passes the suite."""
 
-    requires_entry_point = False
-
-    @pytest.fixture
-    def plugin(self, tmp_path_factory: pytest.TempPathFactory, monkeypatch) -> types.ModuleType:
-        where = tmp_path_factory.mktemp("guide-plugin")
-        yield _import_block("plugin-guide", "my_solver_plugin", where, monkeypatch)
-        sys.modules.pop("my_solver_plugin", None)
-
-    @pytest.fixture
-    def kind(self) -> str:
-        return "mysolver"
-
-    @pytest.fixture
-    def make_solver(self, kind: str):
-        def make(base: Path):
-            source = base / "case" / "rod"
-            source.mkdir(parents=True)
-            (source / "case.cfg").write_text("participant = Rod\n")
-            return make_solver_context(kind, source, base, name="rod", participant="Rod")
-
-        return make
+    __test__ = True
+    mode, module, solver_dir = "plugin-guide", "my_solver_plugin", "rod"
+    case_cfg = "participant = Rod\n"
+    context = {"name": "rod", "participant": "Rod"}
 
     def test_its_reader_follows_the_reader_conventions(self, plugin, solver) -> None:
         from gymprecice.solver import WaitableOutputReader

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -44,9 +45,15 @@ def test_the_site_builds_strictly_in_under_a_minute() -> None:
     assert result.ok, "\n".join(result.problems) or result.output
     assert took < 60, f"the site took {took:.0f} s to build"
     site = ROOT / "site"
-    for page in ("index.html", "tutorials/jet-cylinder/index.html", "reference/core/index.html"):
+    for page in ("index.html", "tutorials/jet-cylinder.html", "reference/core.html"):
         assert (site / page).is_file(), page
-    hooks = (site / "reference" / "hooks" / "index.html").read_text()
+    # opened from the disk, every link of the navigation reaches a page, not a folder
+    home = (site / "index.html").read_text()
+    links = set(re.findall(r'class="md-nav__link[^"]*"[^>]*href="([^"#]+)"', home))
+    links |= set(re.findall(r'href="([^"#:]+)"[^>]*class="md-nav__link', home))
+    assert "get-started.html" in links, sorted(links)
+    assert not [link for link in links if link.endswith("/")], sorted(links)
+    hooks = (site / "reference" / "hooks.html").read_text()
     assert "gymprecice_launch_solver" in hooks and "gymprecice_reset_case" in hooks
 
 
@@ -62,6 +69,14 @@ def test_a_broken_link_is_named_by_page_and_line(tmp_path: Path) -> None:
     autoref = "mkdocs_autorefs: guide.md: Could not find cross-reference target 'gymprecice.Nope'"
     (docs / "guide.md").write_text("# Guide\n\n[gymprecice.Nope][]\n")
     assert build_docs.locate(autoref, docs) == [f"docs/guide.md:3: {autoref}"]
+    # a broken reference in a docstring: placed at the source line that writes it
+    source = tmp_path / "mod.py"
+    source.write_text('"""A module.\n\nSee [the nothing][pkg.mod.Nothing].\n"""\n')
+    in_docstring = (
+        f"mkdocs_autorefs: reference/core.md: from {source}:1: (pkg.mod) "
+        "Could not find cross-reference target 'pkg.mod.Nothing'"
+    )
+    assert build_docs.locate(in_docstring, docs) == [f"{source}:3: {in_docstring}"]
     # a docstring's warning (griffe places it) comes back as it is
     griffe = "griffe: src/pkg/mod.py:12: Parameter 'x' does not appear in the function signature"
     assert build_docs.locate(griffe, docs) == [griffe]

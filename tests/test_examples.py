@@ -128,7 +128,8 @@ def test_openfoam_example_runs_on_real_openfoam_and_precice(tmp_path: Path, monk
 
 
 # -- the training guides (docs/guides/): each script trains on the double and saves a policy
-# that `gymprecice evaluate` loads
+# that `gymprecice evaluate` loads. RLlib's (examples/rllib_ppo.py) runs in .venv-rllib and saves
+# an RLlib checkpoint: tests/test_rllib.py runs it.
 
 
 GUIDES = {

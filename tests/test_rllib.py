@@ -145,3 +145,53 @@ def test_ppo_trains_through_rllib_env_runners(local_ray, tmp_path):
     assert env_dirs == [f"env_{i}" for i in range(RUNNERS * ENVS_PER_RUNNER)]
     assert seen, "no process of the envs was seen while training"
     assert not wait_gone(seen), "processes of the envs outlived algo.stop()"
+
+
+# -- the RLlib guide (docs/guides/rllib.md): examples/rllib_ppo.py, run as the page shows it
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _load_guide():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("rllib_ppo", EXAMPLES / "rllib_ppo.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.timeout(600)
+def test_rllib_guide_trains_on_the_double_and_saves_a_policy_that_acts(tmp_path):
+    import subprocess
+
+    import gymnasium as gym
+    import numpy as np
+
+    runs, out = (tmp_path / "runs").resolve(), tmp_path / "policy"
+    argv = ["--double", "--run-root", str(runs), "--out", str(out)]
+    watcher = ProcessWatcher(lambda: processes_under(runs), interval=0.1)
+    proc = subprocess.run(
+        [sys.executable, str(EXAMPLES / "rllib_ppo.py"), *argv],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=540,
+    )
+    seen = watcher.stop()
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    trained = [line for line in proc.stdout.splitlines() if line.startswith("trained on ")]
+    assert trained, proc.stdout[-3000:]
+    assert int(trained[0].split()[2]) >= 320  # the few hundred steps it was asked for
+    assert seen, "no process of the envs was seen while training"
+    assert not wait_gone(seen), "processes of the envs outlived the script"
+
+    guide = _load_guide()
+    policy = guide.load_policy(out / "checkpoint")
+    env = gym.make("gymprecice/JetCylinderFast-v0", double=True, idx=0, run_root=str(runs))
+    try:
+        obs, _ = env.reset(seed=0)
+        action = guide.greedy_action(policy, obs)
+        assert action.shape == env.action_space.shape and np.isfinite(action).all()
+    finally:
+        env.close()

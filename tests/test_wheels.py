@@ -73,7 +73,8 @@ def test_wheels_carry_their_code_data_and_entry_points(wheels: dict[str, Path]) 
         if dist == "gymprecice-core":
             assert "gymprecice = gymprecice.cli:main" in text
             assert "gymprecice/hookspecs.py" in names
-            assert "gymprecice/testing/fake_precice.py" in names
+            assert "gymprecice/testing/fake_precice/participant.py" in names
+            assert "gymprecice/testing/fake_precice/schemes/base.py" in names
         if dist == "gymprecice-tutorials":
             cases = [n for n in names if "/cases/" in n]
             assert any(n.endswith("precice-config.xml") for n in cases)

@@ -19,7 +19,7 @@ from gymprecice_dealii.plugin import check_against_precice
 from gymprecice_dealii.prm import ElasticityParameters
 from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.environments import find_environment
-from gymprecice_tutorials.perpendicular_flap import fast
+from gymprecice_tutorials.perpendicular_flap import fast, training_case
 from gymprecice_tutorials.perpendicular_flap.fast import (
     EVAL_GUSTS,
     PerpendicularFlapFastEnv,
@@ -86,7 +86,7 @@ def test_an_edit_that_no_longer_matches_the_packaged_case_fails_naming_the_file(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     edits = (("fluid-openfoam/system/controlDict", "deltaT 0.5;", "deltaT 1;"),)
-    monkeypatch.setattr(fast, "FAST_EDITS", edits)
+    monkeypatch.setattr(training_case, "FAST_EDITS", edits)
     with pytest.raises(ValueError, match=r"controlDict.*occurs 0 times.*FAST_EDITS"):
         fast_case_files(4.0)
 

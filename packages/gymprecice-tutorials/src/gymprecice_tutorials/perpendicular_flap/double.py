@@ -48,6 +48,7 @@ from gymprecice.testing import partner
 from gymprecice.testing.flows import Flow
 from gymprecice.watchpoints import watch_point_file_name
 from gymprecice_tutorials.perpendicular_flap.environment import PerpendicularFlapEnv, jet_profile
+from gymprecice_tutorials.perpendicular_flap.training_case import WINDOW, fast_case_files
 
 __all__ = [
     "DAMPING_RATIO",
@@ -104,8 +105,6 @@ def inlet_faces(block_mesh: str) -> InterfaceGeometry:
 
 def training_inlet() -> InterfaceGeometry:
     """The training case's inlet faces (the mesh PerpendicularFlapFast-v0's fluid has)."""
-    from gymprecice_tutorials.perpendicular_flap.fast import fast_case_files
-
     return inlet_faces(fast_case_files(1.0)[_BLOCK_MESH])
 
 
@@ -257,8 +256,6 @@ def double_case_files(
     own; the solver ``solid`` is the scripted :class:`FlapOscillator`, whose watch-point
     log the deal.II plugin's reader opens (``"outputs": "dealii"``).
     """
-    from gymprecice_tutorials.perpendicular_flap.fast import WINDOW, fast_case_files
-
     config: dict[str, Any] = json.loads(fast_case_files(end_time)["gymprecice-config.json"])
     argv = partner.command(
         "{precice_config}",  # the env's own copy, substituted by the "command" kind

@@ -46,7 +46,7 @@ files: the case then gives the controller one-vertex meshes at the tip
 (``Controller-Mesh-tip``, ``Controller-Mesh-force``), onto which preCICE maps the solid's
 ``Displacement`` and the fluid's ``Force`` (nearest neighbour), exchanged in two more explicit schemes that preCICE
 runs once the fluid-solid iterations of a window have converged
-(:data:`PRECICE_OBSERVATION_EDITS`). Both routes give the converged state of the same
+(``training_case.PRECICE_OBSERVATION_EDITS``). Both routes give the converged state of the same
 window; their cost and their values side by side: ``benchmarks/bench_flap_observation_routes.py``
 and docs/training.md. The reward, the task's objective, reads the watch point in both.
 """
@@ -54,7 +54,6 @@ and docs/training.md. The reward, the task's objective, reads the watch point in
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -63,11 +62,19 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice_tutorials.case_files import write_case_files
-from gymprecice_tutorials.perpendicular_flap import CASE_DIR
+from gymprecice_tutorials.perpendicular_flap import double as flap_double
 from gymprecice_tutorials.perpendicular_flap.environment import (
     INLET_HEIGHT,
     PerpendicularFlapEnv,
     jet_profile,
+)
+from gymprecice_tutorials.perpendicular_flap.training_case import (
+    ACTION_TIME,
+    FAST_EDITS,
+    PRECICE_OBSERVATION_EDITS,
+    TIP,
+    WINDOW,
+    fast_case_files,
 )
 
 __all__ = [
@@ -80,87 +87,6 @@ __all__ = [
     "gust",
 ]
 
-#: (file, old text, new text): the training case is the packaged case with these edits.
-#: Each old text must occur exactly once, so a change of the packaged case that would
-#: silently drop an edit fails instead.
-FAST_EDITS: tuple[tuple[str, str, str], ...] = (
-    ("fluid-openfoam/system/blockMeshDict", "nxSide      30;", "nxSide      15;"),
-    ("fluid-openfoam/system/blockMeshDict", "nxFlap      4;", "nxFlap      2;"),
-    ("fluid-openfoam/system/blockMeshDict", "nyFlap      15;", "nyFlap      8;"),
-    ("fluid-openfoam/system/blockMeshDict", "nyAbove     45;", "nyAbove     22;"),
-    ("fluid-openfoam/system/controlDict", "deltaT          0.01;", "deltaT          0.025;"),
-    ("solid-dealii/parameters.prm", "set Time step size  = 0.01", "set Time step size  = 0.05"),
-    ("solid-dealii/parameters.prm", "set Polynomial degree = 4", "set Polynomial degree = 2"),
-    ("gymprecice-config.json", '"windows": 10', '"windows": 2'),
-)
-#: (file, old text, new text) that give the controller the tip's state through preCICE
-#: (``observe="precice"``): two one-vertex controller meshes at the tip, the solid's
-#: displacement mapped onto one and the fluid's force onto the other (preCICE maps one
-#: data name onto a mesh from one mesh only, and the solid's mesh carries a force too),
-#: each sent in an explicit scheme that preCICE runs after the implicit fluid-solid scheme
-#: of the window has converged.
-PRECICE_OBSERVATION_EDITS: tuple[tuple[str, str, str], ...] = (
-    (
-        "precice-config.xml",
-        '  <mesh name="Controller-Mesh-inlet" dimensions="2">',
-        '  <mesh name="Controller-Mesh-tip" dimensions="2">\n'
-        '    <use-data name="Displacement" />\n'
-        "  </mesh>\n\n"
-        '  <mesh name="Controller-Mesh-force" dimensions="2">\n'
-        '    <use-data name="Force" />\n'
-        "  </mesh>\n\n"
-        '  <mesh name="Controller-Mesh-inlet" dimensions="2">',
-    ),
-    (
-        "precice-config.xml",
-        '    <write-data name="Velocity" mesh="Controller-Mesh-inlet" />\n',
-        '    <write-data name="Velocity" mesh="Controller-Mesh-inlet" />\n'
-        '    <provide-mesh name="Controller-Mesh-tip" />\n'
-        '    <provide-mesh name="Controller-Mesh-force" />\n'
-        '    <receive-mesh name="Solid-Mesh" from="Solid" />\n'
-        '    <receive-mesh name="Fluid-Mesh-flap" from="Fluid" />\n'
-        '    <read-data name="Displacement" mesh="Controller-Mesh-tip" />\n'
-        '    <read-data name="Force" mesh="Controller-Mesh-force" />\n'
-        '    <mapping:nearest-neighbor direction="read" from="Solid-Mesh" '
-        'to="Controller-Mesh-tip" constraint="consistent" />\n'
-        '    <mapping:nearest-neighbor direction="read" from="Fluid-Mesh-flap" '
-        'to="Controller-Mesh-force" constraint="consistent" />\n',
-    ),
-    (
-        "precice-config.xml",
-        '  <m2n:sockets acceptor="Fluid" connector="Controller" exchange-directory=".." />\n',
-        '  <m2n:sockets acceptor="Fluid" connector="Controller" exchange-directory=".." />\n'
-        '  <m2n:sockets acceptor="Solid" connector="Controller" exchange-directory=".." />\n',
-    ),
-    (
-        "precice-config.xml",
-        '    <exchange data="Velocity" mesh="Controller-Mesh-inlet" from="Controller" '
-        'to="Fluid" initialize="true" />\n'
-        "  </coupling-scheme:parallel-explicit>\n",
-        '    <exchange data="Velocity" mesh="Controller-Mesh-inlet" from="Controller" '
-        'to="Fluid" initialize="true" />\n'
-        '    <exchange data="Force" mesh="Fluid-Mesh-flap" from="Fluid" to="Controller" />\n'
-        "  </coupling-scheme:parallel-explicit>\n\n"
-        "  <!-- the tip's displacement, once the window's fluid-solid iterations converged -->\n"
-        "  <coupling-scheme:parallel-explicit>\n"
-        '    <participants first="Controller" second="Solid" />\n'
-        '    <max-time value="5.0" />\n'
-        '    <time-window-size value="0.01" />\n'
-        '    <exchange data="Displacement" mesh="Solid-Mesh" from="Solid" to="Controller" />\n'
-        "  </coupling-scheme:parallel-explicit>\n",
-    ),
-    (
-        "gymprecice-config.json",
-        '"write_to": {"inlet": "Velocity"}',
-        '"write_to": {"inlet": "Velocity"},\n        "read_from": {"tip": "Displacement", "force": "Force"}',
-    ),
-)
-#: the flap tip, where both observation routes look (m)
-TIP = (0.0, 1.0)
-#: the training case's preCICE time window (s)
-WINDOW = 0.05
-#: simulated seconds per action (two windows)
-ACTION_TIME = 0.1
 #: grid of gust heights (m): training draws ``GUST_STEP * (k + 0.5)``, evaluation uses
 #: multiples of ``GUST_STEP``, so the two never share a height
 GUST_STEP = 0.05
@@ -204,57 +130,6 @@ def gust(rng: np.random.Generator, settle_time: float, low: float, high: float) 
     actions = max(1, round(settle_time / ACTION_TIME))
     switch = ACTION_TIME * int(rng.integers(1, max(2, actions)))
     return Gust(heights[0], heights[1], switch)
-
-
-def fast_case_files(end_time: float, observe: str = "watchpoint") -> dict[str, str]:
-    """The training case's files: the packaged case with :data:`FAST_EDITS` applied and
-    the run's end (preCICE max-time, the solvers' end times) at ``end_time``; with
-    ``observe="precice"``, :data:`PRECICE_OBSERVATION_EDITS` too."""
-    files = {
-        str(path.relative_to(CASE_DIR)): path.read_text()
-        for path in sorted(CASE_DIR.rglob("*"))
-        if path.is_file()
-    }
-    edits = [
-        *FAST_EDITS,
-        *(PRECICE_OBSERVATION_EDITS if observe == "precice" else ()),
-        (
-            "solid-dealii/parameters.prm",
-            "set End time        = 5",
-            f"set End time        = {_fmt(end_time + 1)}",
-        ),
-        (
-            "fluid-openfoam/system/controlDict",
-            "endTime         5;",
-            f"endTime         {_fmt(end_time + 1)};",
-        ),
-    ]
-    for rel, old, new in edits:
-        count = files[rel].count(old)
-        if count != 1:
-            raise ValueError(
-                f"{CASE_DIR / rel}: the training case edits {old!r}, which occurs {count} "
-                "times (expected once); update FAST_EDITS in gymprecice_tutorials."
-                "perpendicular_flap.fast to the packaged case"
-            )
-        files[rel] = files[rel].replace(old, new)
-    xml = "precice-config.xml"
-    files[xml], count = re.subn(
-        r'<max-time value="[^"]*" />', f'<max-time value="{_fmt(end_time)}" />', files[xml]
-    )
-    schemes = 3 if observe == "precice" else 2
-    if count != schemes:
-        raise ValueError(
-            f"{CASE_DIR / xml}: expected {schemes} coupling schemes' max-time, found {count}"
-        )
-    files[xml] = files[xml].replace(
-        'time-window-size value="0.01"', f'time-window-size value="{_fmt(WINDOW)}"'
-    )
-    return files
-
-
-def _fmt(value: float) -> str:
-    return f"{value:.10g}"
 
 
 class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
@@ -309,8 +184,6 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         self.settle_time = float(settle_time)
         end_time = self.settle_time + self.episode_time
         if options is None and double:
-            from gymprecice_tutorials.perpendicular_flap import double as flap_double
-
             options = write_case_files(
                 "perpendicular-flap-fast-double", flap_double.double_case_files(end_time), run_root
             )
@@ -329,8 +202,6 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         if not any(solver.kind == "openfoam" for solver in self.config.solvers.values()):
             # No fluid mesh a plugin could read (the test double's scripted flap): give the
             # controller the training case's inlet faces.
-            from gymprecice_tutorials.perpendicular_flap import double as flap_double
-
             self.set_interface_vertices(self.INLET, flap_double.training_inlet().coordinates)
         if observe == "precice":
             self.set_interface_vertices("tip", [TIP])

@@ -1,0 +1,92 @@
+"""The transport between two participants: one Unix socket, length-prefixed messages."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import socket
+import struct
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gymprecice.testing.fake_precice.errors import PreciceError, hang_forever
+
+
+class Channel:
+    """One connected socket to one coupling partner, with length-prefixed messages.
+
+    A message is a small JSON header (kind, a value, array descriptors) followed by the raw
+    bytes of float64 arrays; nothing is unpickled, so nothing a peer sends can run code.
+    """
+
+    _PREFIX = struct.Struct("<QI")
+
+    def __init__(self, sock: socket.socket, local: str, remote: str) -> None:
+        self.sock = sock
+        self.local = local
+        self.remote = remote
+
+    def send(self, kind: str, value: Any = None, arrays: Sequence[np.ndarray] = ()) -> None:
+        blobs = [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
+        header = json.dumps({"k": kind, "v": value, "a": [list(b.shape) for b in blobs]})
+        head = header.encode()
+        body_len = len(head) + sum(b.nbytes for b in blobs)
+        parts = [self._PREFIX.pack(body_len, len(head)), head, *(b.tobytes() for b in blobs)]
+        try:
+            self.sock.sendall(b"".join(parts))
+        except OSError:
+            hang_forever()
+
+    def recv(self, kind: str) -> tuple[Any, list[np.ndarray]]:
+        prefix = self._read(self._PREFIX.size)
+        body_len, head_len = self._PREFIX.unpack(prefix)
+        body = self._read(body_len)
+        header = json.loads(bytes(body[:head_len]))
+        if header["k"] != kind:
+            raise PreciceError(
+                f'Communication with participant "{self.remote}" is out of step: expected '
+                f'"{kind}" but received "{header["k"]}". Both participants must run the '
+                "same preCICE configuration with the same preCICE version."
+            )
+        arrays: list[np.ndarray] = []
+        offset = head_len
+        for shape in header["a"]:
+            count = int(np.prod(shape)) if shape else 1
+            nbytes = 8 * count
+            arrays.append(
+                np.frombuffer(body, dtype=np.float64, count=count, offset=offset).reshape(shape)
+            )
+            offset += nbytes
+        return header["v"], arrays
+
+    def _read(self, n: int) -> bytearray:
+        buf = bytearray(n)
+        view = memoryview(buf)
+        got = 0
+        while got < n:
+            try:
+                k = self.sock.recv_into(view[got:], n - got)
+            except InterruptedError:
+                continue
+            except OSError:
+                hang_forever()
+            if k == 0:  # the partner closed the connection (died or finalized early)
+                hang_forever()
+            got += k
+        return buf
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self.sock.close()
+
+
+def short_socket_dir() -> Path:
+    """A private (0700) directory whose path is short enough for ``AF_UNIX`` (108 bytes)."""
+    base = tempfile.gettempdir()
+    if len(base) > 60:
+        base = "/tmp"
+    return Path(tempfile.mkdtemp(prefix="fprc-", dir=base))
