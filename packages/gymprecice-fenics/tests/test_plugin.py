@@ -38,6 +38,24 @@ def test_prepare_points_the_adapter_file_at_the_envs_xml_and_keeps_the_geometry(
     assert plugin.gymprecice_interface_geometry(solver, "heater", "Fluid-Mesh") is None
 
 
+def test_a_second_mesh_the_script_sets_through_the_participant_has_its_geometry(
+    make_fenics_solver,
+) -> None:
+    heater = [[0.5 * i, -0.25] for i in range(3)]
+    solver = make_fenics_solver(
+        dry_run={
+            "participant": "Solid",
+            "mesh": "Solid-Mesh",
+            "coordinates": [[0.0, 0.0], [1.0, 0.0]],
+            "meshes": {"Solid-Mesh": [[0.0, 0.0], [1.0, 0.0]], "Solid-Mesh-heater": heater},
+        }
+    )
+    assert plugin.gymprecice_prepare_case(solver) is True
+    geometry = plugin.gymprecice_interface_geometry(solver, "heater", "Solid-Mesh-heater")
+    np.testing.assert_allclose(geometry.coordinates, heater)
+    assert len(plugin.gymprecice_interface_geometry(solver, "plate", "Solid-Mesh").coordinates) == 2
+
+
 def test_no_fenics_on_the_machine_is_reported_with_the_install_commands(
     make_fenics_solver, tmp_path: Path
 ) -> None:

@@ -140,24 +140,45 @@ def check_against_precice(
                 f"{file}: interface.{key} is {data!r}, but in {xml} participant {participant!r} "
                 f"has <{tag}> {on_mesh} on mesh {adapter.mesh!r}; make the data names agree"
             )
-    if adapter.read_data and not problems:
+    if not problems:
         problems += _check_writers(adapter, cfg)
     return problems
 
 
 def _check_writers(adapter: AdapterConfig, cfg: PreciceConfig) -> list[str]:
-    """The data exchanged towards this participant must include what it reads."""
+    """What the participant reads on each of its meshes must be sent to that mesh.
+
+    A datum arrives on a mesh either exchanged on it, or exchanged on a partner's mesh that
+    the participant maps to it. Checked for every ``<read-data>`` of the participant: the
+    adapter file's mesh and any second mesh the script reads through the adapter's
+    participant (a heater the controller drives).
+    """
+    spec = cfg.participants[adapter.participant]
+    sources: dict[str, set[str]] = {}
+    for mapping in spec.mappings:
+        if mapping.direction == "read":
+            sources.setdefault(mapping.to_mesh, set()).add(mapping.from_mesh)
     incoming = [
-        (ex.data, ex.from_participant)
+        (ex.data, ex.mesh, ex.from_participant)
         for scheme in cfg.coupling_schemes
         for ex in scheme.exchanges
         if ex.to_participant == adapter.participant
     ]
-    if not incoming or any(data == adapter.read_data for data, _ in incoming):
-        return []
-    sent = ", ".join(f"{data!r} from {who!r}" for data, who in incoming)
-    return [
-        f"{adapter.path}: the FEniCS participant {adapter.participant!r} reads "
-        f"{adapter.read_data!r}, but {cfg.path} exchanges only {sent} to it; make the writer "
-        f"write {adapter.read_data!r} (or the script read what is sent)"
-    ]
+    problems = []
+    for data, mesh in spec.read_data:
+        meshes = {mesh, *sources.get(mesh, ())}
+        arriving = [(d, who) for d, m, who in incoming if m in meshes]
+        if not arriving or any(d == data for d, _ in arriving):
+            continue
+        sent = ", ".join(f"{d!r} from {who!r}" for d, who in arriving)
+        where = (
+            "the script"
+            if mesh == adapter.mesh
+            else "the script (through the adapter's participant)"
+        )
+        problems.append(
+            f"{adapter.path}: {where} of FEniCS participant {adapter.participant!r} reads "
+            f"{data!r} on mesh {mesh!r}, but {cfg.path} exchanges only {sent} to it; make "
+            f"the writer write {data!r} (or the script read what is sent)"
+        )
+    return problems

@@ -12,6 +12,11 @@ would give them to preCICE, prints them as one JSON line and ends the process. S
 run (no preCICE, no partner) shows whether the script imports, builds its mesh and reaches
 the coupling, and where its coupling vertices are.
 
+fenicsprecice 2.x couples one mesh; a script with a second mesh (a heater on another
+boundary) sets its vertices through the adapter's participant (``adapter._participant.
+set_mesh_vertices(mesh, coords)``) before ``initialize``. The stand-in records those too,
+so every mesh the script provides has its vertices in the answer.
+
 Exit status: 0 with a ``GYMPRECICE-DRY-RUN {json}`` line; 3 when the script raised (its
 traceback on stderr); 4 when it ended without initializing the adapter.
 """
@@ -28,9 +33,30 @@ def main(script):
     from fenicsprecice.adapter_core import get_fenics_vertices
     from fenicsprecice.config import Config
 
+    meshes = {}
+
+    class RecordingParticipant:
+        """What a script may ask of preCICE before the coupling starts."""
+
+        def set_mesh_vertices(self, mesh, coordinates):
+            rows = [list(map(float, c)) for c in coordinates]
+            meshes.setdefault(mesh, []).extend(rows)
+            start = len(meshes[mesh]) - len(rows)
+            return list(range(start, len(meshes[mesh])))
+
+        def set_mesh_vertex(self, mesh, coordinate):
+            return self.set_mesh_vertices(mesh, [coordinate])[0]
+
+        def get_mesh_dimensions(self, mesh):
+            return 2 if not meshes.get(mesh) else len(meshes[mesh][0])
+
+        def requires_mesh_connectivity_for(self, mesh):
+            return False
+
     class DryRunAdapter:
         def __init__(self, adapter_config_filename="precice-adapter-config.json", **_):
             self._config = Config(adapter_config_filename)
+            self._participant = RecordingParticipant()
 
         def initialize(self, coupling_subdomain, read_function_space=None, write_object=None, **_):
             space = read_function_space
@@ -42,10 +68,13 @@ def main(script):
                 )
             dims = space.tabulate_dof_coordinates().shape[1]
             _, _, coords = get_fenics_vertices(space, coupling_subdomain, dims)
+            mesh = self._config.get_coupling_mesh_name()
+            meshes[mesh] = [list(map(float, c)) for c in coords]
             out = {
                 "participant": self._config.get_participant_name(),
-                "mesh": self._config.get_coupling_mesh_name(),
-                "coordinates": [list(map(float, c)) for c in coords],
+                "mesh": mesh,
+                "coordinates": meshes[mesh],
+                "meshes": meshes,
             }
             sys.stdout.write("GYMPRECICE-DRY-RUN " + json.dumps(out) + "\n")
             sys.stdout.flush()

@@ -35,7 +35,9 @@ What the hooks do:
 * divergence: a script that died with a PETSc ``DIVERGED_*`` reason or a Newton solver
   that did not converge diverged.
 * interface geometry: the dry run's vertices, for a controller mesh mapped to the
-  script's coupling mesh.
+  script's coupling mesh or to a second mesh the script sets through the adapter's
+  participant (fenicsprecice 2.x couples one mesh; a heater on another boundary needs a
+  second).
 * install: ``gymprecice install fenics`` builds the solver environment.
 """
 
@@ -134,8 +136,7 @@ def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
         if problems:
             raise CaseError("\n".join(problems))
     solver.state["participant"] = adapter.participant
-    solver.state["mesh"] = adapter.mesh
-    solver.state["coordinates"] = dry_run(solver, python, script)["coordinates"]
+    solver.state["meshes"] = dry_run(solver, python, script)["meshes"]
     return True
 
 
@@ -189,15 +190,10 @@ def gymprecice_interface_geometry(
 ) -> InterfaceGeometry | None:
     if solver.kind != KIND:
         return None
-    if "coordinates" not in solver.state:
-        adapter = _adapter_config(solver)
-        if adapter.mesh != mesh:
-            return None
-        found = dry_run(solver, _checked_python(solver), _script(solver))
-        solver.state.update(mesh=found["mesh"], coordinates=found["coordinates"])
-    if solver.state.get("mesh") != mesh:
-        return None
-    return InterfaceGeometry(solver.state["coordinates"])
+    if "meshes" not in solver.state:
+        solver.state["meshes"] = dry_run(solver, _checked_python(solver), _script(solver))["meshes"]
+    coordinates = solver.state["meshes"].get(mesh)
+    return None if not coordinates else InterfaceGeometry(coordinates)
 
 
 @hookimpl
@@ -231,7 +227,9 @@ def gymprecice_install_steps() -> list[InstallStep]:
 def dry_run(solver: SolverContext, python: str, script: Path) -> dict[str, Any]:
     """Run ``script`` up to ``Adapter.initialize`` in the run directory (see ``dry_run.py``).
 
-    Returns ``{"participant", "mesh", "coordinates"}``; raises :class:`CaseError` with the
+    Returns ``{"participant", "mesh", "coordinates", "meshes"}`` (``meshes``: the vertices of
+    every mesh the script set, the adapter's and any it set through the adapter's
+    participant); raises :class:`CaseError` with the
     script's own error and the fix when it fails before coupling.
     """
     try:
@@ -256,6 +254,7 @@ def dry_run(solver: SolverContext, python: str, script: Path) -> dict[str, Any]:
     )
     if line is not None:
         found = json.loads(line.split(" ", 1)[1])
+        found.setdefault("meshes", {found["mesh"]: found["coordinates"]})
         if not found["coordinates"]:
             raise CaseError(
                 f"{script}: the coupling subdomain given to Adapter.initialize contains no mesh "

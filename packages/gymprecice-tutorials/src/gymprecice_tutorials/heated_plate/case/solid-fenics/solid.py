@@ -2,15 +2,17 @@
 
 The plate [0, 1] x [-0.25, 0] (100 x 25 linear elements, as in preCICE's
 flow-over-heated-plate tutorial) with thermal diffusivity 1 m^2/s and conductivity
-100 W/(m K). Its top edge is the coupling interface: it reads the fluid's temperature there
-(a Dirichlet condition) and writes the heat flux -k dT/dy. Its bottom edge is held at the
-heater's temperature, a time table in ``constant/heater-temperature`` (OpenFOAM's list
-format ``((t T) ...)``, linear in between and constant outside, the same file and rule as
-the laplacianFoam solid's ``tableFile``); the environment writes it for each episode. The
-sides are insulated.
-"""
+100 W/(m K). Its top edge is the coupling interface with the fluid: it reads the fluid's
+temperature there (a Dirichlet condition) and writes the heat flux -k dT/dy, through
+fenicsprecice. Its bottom edge is held at the heater's temperature, which the controller
+writes on a second preCICE mesh, ``Solid-Mesh-heater`` (the bottom's vertices). The sides
+are insulated.
 
-import re
+fenicsprecice 2.x couples one mesh per participant, so the heater's mesh goes through the
+adapter's own preCICE participant: its vertices are set before ``initialize`` (which starts
+the coupling) and its temperature is read every time step. The controller writes one
+temperature for the whole heater; the plate takes the mean of what it reads.
+"""
 
 import numpy as np
 from fenics import (
@@ -40,16 +42,7 @@ CONDUCTIVITY = 100.0  # W/(m K)
 DIFFUSIVITY = 1.0  # m^2/s
 TIME_STEP = 0.01  # s, the preCICE time window
 Y_TOP, Y_BOTTOM = 0.0, -0.25
-
-
-def heater_table(path="constant/heater-temperature"):
-    """(times, temperatures) of an OpenFOAM list ``((t T) ...)``."""
-    with open(path) as f:
-        pairs = re.findall(r"\(\s*([-+0-9.eE]+)\s+([-+0-9.eE]+)\s*\)", f.read())
-    if not pairs:
-        raise ValueError(f"{path}: no (time temperature) pairs")
-    times, values = np.array(pairs, dtype=float).T
-    return times, values
+HEATER_MESH = "Solid-Mesh-heater"
 
 
 class Top(SubDomain):
@@ -62,20 +55,18 @@ class Bottom(SubDomain):
         return on_boundary and near(x[1], Y_BOTTOM, 1e-14)
 
 
-times, temperatures = heater_table()
-
-
-def heater(t):
-    return float(np.interp(t, times, temperatures))
-
-
 mesh = RectangleMesh(Point(0, Y_BOTTOM), Point(1, Y_TOP), 100, 25)
 V = FunctionSpace(mesh, "P", 1)
 V_g = VectorFunctionSpace(mesh, "P", 1)
-bottom_temperature = Constant(heater(0.0))
+bottom_temperature = Constant(310.0)
 u_n = interpolate(Constant(310.0), V)
 
 precice = Adapter(adapter_config_filename="precice-adapter-config.json")
+participant = precice._participant  # the adapter's preCICE participant (see above)
+bottom_x = np.unique(mesh.coordinates()[np.isclose(mesh.coordinates()[:, 1], Y_BOTTOM), 0])
+heater_ids = participant.set_mesh_vertices(
+    HEATER_MESH, np.column_stack([bottom_x, np.full_like(bottom_x, Y_BOTTOM)])
+)
 precice.initialize(Top(), read_function_space=V, write_object=V_g.sub(1))
 coupling_expression = precice.create_coupling_expression()
 
@@ -98,7 +89,8 @@ while precice.is_coupling_ongoing():
         precice.store_checkpoint(u_n, t, 0)
     dt.assign(min(TIME_STEP, precice.get_max_time_step_size()))
     precice.update_coupling_expression(coupling_expression, precice.read_data(dt))
-    bottom_temperature.assign(heater(t + float(dt)))
+    heater = participant.read_data(HEATER_MESH, "Temperature", heater_ids, float(dt))
+    bottom_temperature.assign(float(np.mean(heater)))
     solve(a == L, u_np1, bcs)
     # The heat flux at the interface: -k grad T projected onto the vertices; the fluid
     # takes its y component.
