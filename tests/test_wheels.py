@@ -83,6 +83,9 @@ def test_wheels_carry_their_code_data_and_entry_points(wheels: dict[str, Path]) 
             flap = "gymprecice_tutorials/perpendicular_flap/case/"
             assert flap + "solid-dealii/parameters.prm" in names
             assert flap + "fluid-openfoam/system/preciceDict" in names
+            plate = "gymprecice_tutorials/heated_plate/case/"
+            assert plate + "solid-fenics/solid.py" in names
+            assert plate + "solid-openfoam/system/preciceDict" in names
         if dist == "gymprecice-fenics":
             # run by the FEniCS interpreter from the installed package, so it must ship
             assert "gymprecice_fenics/dry_run.py" in names
