@@ -173,3 +173,31 @@ def test_uncontrolled_holds_the_tutorials_heater_whatever_the_action(tmp_path: P
     finally:
         env.close()
     assert {i["heater_temperature"] for i in infos} == {310.0}
+
+
+# -- the PID baseline ------------------------------------------------------------------------
+
+
+def test_pid_integral_is_clipped_to_the_heater_range() -> None:
+    from gymprecice_tutorials.heated_plate.pid import PIDController
+
+    pid = PIDController(kp=0.0, ki=100.0)
+    for _ in range(50):  # far too cold for long: the integral must not wind up
+        action = pid(np.array([-10.0, 0.0, 0.0, 0.1], np.float32))
+    assert action[0] == pytest.approx(HEATER_RANGE[1])
+    assert pid.integral == pytest.approx(HEATER_RANGE[1] - 310.0)
+    # One step past the setpoint brings the heater down at once.
+    assert pid(np.array([0.5, 0.0, 0.0, 0.1], np.float32))[0] < HEATER_RANGE[1]
+    pid.reset()
+    assert pid.integral == 0.0
+
+
+def test_a_pid_tracks_the_setpoint_better_than_the_uncontrolled_plate(env) -> None:
+    from gymprecice_tutorials.heated_plate.pid import PIDController, constant, rollout
+
+    uncontrolled = rollout(env, constant(310.0), seed=0, split="eval", label="u")
+    pid = rollout(env, PIDController(2.0, 20.0), seed=0, split="eval", label="pid")
+    assert pid.setpoint == EVAL_STARTS[0].setpoint
+    assert pid.tracking_error < 0.5 * uncontrolled.tracking_error
+    final = abs(pid.temperature[-1] - pid.setpoint)
+    assert final < abs(uncontrolled.temperature[-1] - uncontrolled.setpoint) / 3
