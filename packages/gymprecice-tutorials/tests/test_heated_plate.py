@@ -201,3 +201,45 @@ def test_a_pid_tracks_the_setpoint_better_than_the_uncontrolled_plate(env) -> No
     assert pid.tracking_error < 0.5 * uncontrolled.tracking_error
     final = abs(pid.temperature[-1] - pid.setpoint)
     assert final < abs(uncontrolled.temperature[-1] - uncontrolled.setpoint) / 3
+
+
+# -- bad input in the OpenFOAM participants (gymprecice check, no solver started) --------------
+
+
+def _check_case(tmp_path: Path, capsys, edit) -> tuple[int, str]:
+    from gymprecice.cli import main
+
+    case = tmp_path / "case"
+    for rel, text in case_files("openfoam", 1.0).items():
+        (case / rel).parent.mkdir(parents=True, exist_ok=True)
+        (case / rel).write_text(text)
+    edit(case)
+    status = main(["check", str(case)])
+    return status, capsys.readouterr().err
+
+
+def test_the_packaged_case_passes_the_check(tmp_path: Path, capsys) -> None:
+    status, err = _check_case(tmp_path, capsys, lambda case: None)
+    assert status == 0, err
+
+
+def test_a_fluid_without_the_cht_module_is_named(tmp_path: Path, capsys) -> None:
+    def drop_cht(case: Path) -> None:
+        pdict = case / "fluid-openfoam" / "system" / "preciceDict"
+        pdict.write_text(pdict.read_text().replace("modules (CHT FF);", "modules (FF);"))
+
+    status, err = _check_case(tmp_path, capsys, drop_cht)
+    assert status == 1
+    assert "fluid-openfoam/system/preciceDict: interface 'plate' exchanges 'Heat-Flux'" in err
+    assert "CHT module" in err and "'modules (FF CHT);'" in err
+
+
+def test_a_laplacianfoam_plate_without_the_heater_patch_is_named(tmp_path: Path, capsys) -> None:
+    def rename_bottom(case: Path) -> None:
+        mesh = case / "solid-openfoam" / "system" / "blockMeshDict"
+        mesh.write_text(mesh.read_text().replace("    bottom\n", "    base\n"))
+
+    status, err = _check_case(tmp_path, capsys, rename_bottom)
+    assert status == 1
+    assert "solid-openfoam/system/preciceDict: interface 'heater' names patch 'bottom'" in err
+    assert "solid-openfoam/system/blockMeshDict" in err
