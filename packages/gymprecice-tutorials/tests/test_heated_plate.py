@@ -243,3 +243,19 @@ def test_a_laplacianfoam_plate_without_the_heater_patch_is_named(tmp_path: Path,
     assert status == 1
     assert "solid-openfoam/system/preciceDict: interface 'heater' names patch 'bottom'" in err
     assert "solid-openfoam/system/blockMeshDict" in err
+
+
+def test_pid_figure_shows_every_controller_on_every_start(env, tmp_path: Path) -> None:
+    from dataclasses import asdict
+
+    from gymprecice_tutorials.heated_plate.pid import PIDController, constant, plot, rollout
+
+    runs = [
+        rollout(env, controller, seed=seed, split="eval", label=label)
+        for seed in range(len(EVAL_STARTS))
+        for label, controller in (("uncontrolled", constant(310.0)), ("PID", PIDController(2, 20)))
+    ]
+    results = tmp_path / "pid.json"
+    results.write_text(json.dumps({"evaluation": [asdict(r) for r in runs], "settle_time": 0.2}))
+    png = plot(results, tmp_path / "pid.png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

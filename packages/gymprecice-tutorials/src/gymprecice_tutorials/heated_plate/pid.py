@@ -35,7 +35,7 @@ from gymprecice_tutorials.heated_plate.environment import (
     HeatedPlateEnv,
 )
 
-__all__ = ["PIDController", "Rollout", "rollout", "sweep"]
+__all__ = ["PIDController", "Rollout", "plot", "rollout", "sweep"]
 
 
 @dataclass
@@ -136,6 +136,45 @@ def sweep(
     return sorted(results, key=lambda r: -r[2])
 
 
+def plot(results: Path, out: Path) -> Path:
+    """Interface and heater temperature against time, every controller on every held-out
+    start of ``results`` (the ``pid.json`` that :func:`main` writes), one column a start."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    saved = json.loads(Path(results).read_text())
+    runs, settle = saved["evaluation"], float(saved.get("settle_time", 0.3))
+    seeds = sorted({r["seed"] for r in runs})
+    labels = list(dict.fromkeys(r["label"] for r in runs))
+    fig, axes = plt.subplots(2, len(seeds), figsize=(4.2 * len(seeds), 6), sharex=True)
+    axes = np.asarray(axes).reshape(2, len(seeds))
+    for col, seed in enumerate(seeds):
+        for label in labels:
+            (run,) = [r for r in runs if r["seed"] == seed and r["label"] == label]
+            axes[0, col].plot(run["time"], run["temperature"], label=label)
+            axes[1, col].plot(run["time"], run["heater"], label=label)
+        setpoint = next(r["setpoint"] for r in runs if r["seed"] == seed)
+        axes[0, col].axhline(setpoint, color="k", linestyle=":", label="setpoint")
+        start = EVAL_STARTS[seed]
+        for row in (0, 1):
+            axes[row, col].axvline(settle + start.step_time, color="grey", linewidth=0.8)
+        axes[0, col].set_title(
+            f"held-out start {seed}: inflow 0.1 -> {start.velocity:g} m/s at "
+            f"t = {settle + start.step_time:g} s",
+            fontsize=9,
+        )
+        axes[1, col].set_xlabel("time (s)")
+    axes[0, 0].set_ylabel("mean interface temperature (K)")
+    axes[1, 0].set_ylabel("heater temperature (K)")
+    axes[0, -1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs solvers
     """Sweep PI(D) gains on training starts, then evaluate on the held-out starts."""
     parser = argparse.ArgumentParser(description=main.__doc__)
@@ -186,11 +225,13 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs s
                 "best": best,
                 "evaluation": [asdict(r) for r in evaluated],
                 "wall_s": time.perf_counter() - started,
+                "settle_time": env.settle_time,
             },
             indent=1,
         )
     )
     print(f"{time.perf_counter() - started:.0f} s; results in {out / 'pid.json'}")
+    print(f"figure: {plot(out / 'pid.json', out / 'pid.png')}")
     return 0
 
 
