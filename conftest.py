@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 
 #: Set to 1 (CI does) to turn a skipped real-stack test into a failure: where the set-up
-#: builds preCICE and the adapters, a ``precice``/``openfoam``/``dealii`` test that skips
+#: builds preCICE and the adapters, a ``precice``/``openfoam``/``dealii``/``fenics`` test that skips
 #: proves nothing and hides a broken set-up.
 REQUIRE_REAL_ENV = "GYMPRECICE_REQUIRE_REAL"
-REAL_MARKERS = ("precice", "openfoam", "dealii")
+REAL_MARKERS = ("precice", "openfoam", "dealii", "fenics")
 
 
 @pytest.fixture(autouse=True)

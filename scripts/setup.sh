@@ -18,10 +18,15 @@
 #    set-up goes on, and the tests that need that piece skip (fail under
 #    GYMPRECICE_REQUIRE_REAL=1, as in CI).
 #
+#    With it, the FEniCS solver environment (`gymprecice install fenics`): Debian's
+#    python3-dolfin on the system Python, numpy 1.x, pyprecice against the stack and
+#    fenicsprecice, in the stack prefix (reused by every clone, like the adapters).
+#
 # 4. .venv-rllib: RLlib (ray[rllib] 2.60 pins gymnasium 1.2.2) for the RLlib tests.
 #
 # Variables: GYMPRECICE_SKIP_APT=1 (no apt), GYMPRECICE_SKIP_STACK=1 (no native builds),
-# GYMPRECICE_SKIP_RLLIB=1 (no .venv-rllib),
+# GYMPRECICE_SKIP_RLLIB=1 (no .venv-rllib), GYMPRECICE_SKIP_FENICS=1 (no FEniCS packages
+# nor FEniCS solver environment; the FEniCS tests skip, or fail under GYMPRECICE_REQUIRE_REAL=1),
 # GYMPRECICE_SOURCES, GYMPRECICE_STACK_PREFIX (default ~/.local/share/gymprecice/stack).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -36,6 +41,14 @@ SOLVER_PACKAGES=(openfoam libdeal.ii-dev libopenmpi-dev)
 BUILD_PACKAGES=(g++ make cmake pkg-config libeigen3-dev libxml2-dev
   libboost-dev libboost-log-dev libboost-thread-dev libboost-system-dev
   libboost-filesystem-dev libboost-program-options-dev libboost-test-dev)
+
+# Debian's legacy FEniCS is built for the system Python only: FEniCS participants run in a
+# solver environment of their own (see `gymprecice install fenics`).
+FENICS_PACKAGES=(python3-dolfin python3-scipy python3-venv)
+INSTALL_SKIP=()
+if [ "${GYMPRECICE_SKIP_FENICS:-0}" = "1" ]; then
+  INSTALL_SKIP=(--skip fenics)
+fi
 
 SUDO=""
 can_apt() {
@@ -95,6 +108,11 @@ PY
 
 if can_apt; then
   apt_install "${SOLVER_PACKAGES[@]}"
+  if [ "${GYMPRECICE_SKIP_FENICS:-0}" != "1" ]; then
+    apt_install "${FENICS_PACKAGES[@]}" ||
+      echo "setup: could not install ${FENICS_PACKAGES[*]}; the FEniCS solver environment" \
+        "will not build (install them, then run \`gymprecice install fenics\`)" >&2
+  fi
   if [ "${GYMPRECICE_SKIP_STACK:-0}" != "1" ]; then
     apt_install "${BUILD_PACKAGES[@]}"
     ensure_deb_src || echo "setup: could not add deb-src entries; see the OpenFOAM adapter step" >&2
@@ -116,6 +134,7 @@ $PIP install -q --disable-pip-version-check \
   -e "packages/gymprecice-core[ray]" \
   -e packages/gymprecice-openfoam \
   -e packages/gymprecice-dealii \
+  -e packages/gymprecice-fenics \
   -e "packages/gymprecice-tutorials[train]" \
   pytest pytest-timeout "ruff==0.17.6" build mpi4py \
   -r docs/requirements.txt "torchrl==0.14.1"
@@ -126,7 +145,7 @@ if [ "${GYMPRECICE_SKIP_STACK:-0}" != "1" ]; then
     GYMPRECICE_SOURCES="$(cd ../shared/vendor && pwd)"
     export GYMPRECICE_SOURCES
   fi
-  if ! .venv/bin/gymprecice install all; then
+  if ! .venv/bin/gymprecice install all ${INSTALL_SKIP[@]+"${INSTALL_SKIP[@]}"}; then
     echo "setup: part of the real stack did not build (see above); the tests that need it" \
       "will skip, or fail under GYMPRECICE_REQUIRE_REAL=1" >&2
   fi

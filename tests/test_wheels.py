@@ -23,6 +23,7 @@ DISTRIBUTIONS = [
     "gymprecice-core",
     "gymprecice-openfoam",
     "gymprecice-dealii",
+    "gymprecice-fenics",
     "gymprecice-tutorials",
 ]
 
@@ -83,6 +84,12 @@ def test_wheels_carry_their_code_data_and_entry_points(wheels: dict[str, Path]) 
             flap = "gymprecice_tutorials/perpendicular_flap/case/"
             assert flap + "solid-dealii/parameters.prm" in names
             assert flap + "fluid-openfoam/system/preciceDict" in names
+            plate = "gymprecice_tutorials/heated_plate/case/"
+            assert plate + "solid-fenics/solid.py" in names
+            assert plate + "solid-openfoam/system/preciceDict" in names
+        if dist == "gymprecice-fenics":
+            # run by the FEniCS interpreter from the installed package, so it must ship
+            assert "gymprecice_fenics/dry_run.py" in names
 
 
 def test_wheels_install_into_a_fresh_venv_and_work_outside_the_repo(wheels, tmp_path: Path) -> None:
@@ -114,7 +121,7 @@ def test_wheels_install_into_a_fresh_venv_and_work_outside_the_repo(wheels, tmp_
         env=clean_env,
     )
     names = json.dumps(json.loads(listing.stdout))
-    for plugin in ("openfoam", "dealii", "script"):
+    for plugin in ("openfoam", "dealii", "fenics", "script"):
         assert plugin in names
     probe = subprocess.run(
         [

@@ -167,6 +167,24 @@ def test_order_puts_requirements_first_and_refuses_unknown_steps():
         order_steps(steps, ["nope"])
 
 
+def test_skip_leaves_a_step_out_unless_a_wanted_one_requires_it():
+    def step(name: str, *requires: str) -> InstallStep:
+        return InstallStep(name, name, "1", lambda c: None, lambda p: None, requires=requires)
+
+    steps = [step("adapter", "lib"), step("lib"), step("other")]
+    assert [s.name for s in order_steps(steps, ["all"], skip=["other"])] == ["lib", "adapter"]
+    assert [s.name for s in order_steps(steps, ["all"], skip=["lib"])] == [
+        "lib",
+        "adapter",
+        "other",
+    ]
+    assert [s.name for s in order_steps(steps, ["all"], skip=["absent"])] == [
+        "lib",
+        "adapter",
+        "other",
+    ]
+
+
 def test_solver_environment_adds_the_stack_once(prefix):
     assert solver_environment({"PATH": "/usr/bin"}) == {}  # nothing built: nothing added
     (prefix / "lib").mkdir(parents=True)

@@ -100,6 +100,29 @@ def test_a_mesh_name_absent_from_the_xml(capsys, tmp_path: Path) -> None:
     assert str(case / "precice-config.xml") in err and "'Fluid-Mesh-jet1'" in err
 
 
+def test_data_of_a_module_the_precice_dict_does_not_enable(capsys, tmp_path: Path) -> None:
+    # A CHT fluid whose preciceDict lists only FF: the adapter would refuse the
+    # temperature at run time, after the other participants have started.
+    case = _case(tmp_path)
+    pdict = case / "fluid-openfoam" / "system" / "preciceDict"
+    _edit(pdict, "modules (FF);", "modules (FSI);")
+    status, err = _check(capsys, case)
+    assert status == 1
+    assert f"{pdict}: interface 'Jet1' exchanges 'Velocity'" in err
+    assert "adapter's FF module handles, but 'modules' is (FSI); add it: 'modules (FSI FF);'" in err
+
+
+def test_adapter_modules_by_data_name() -> None:
+    from gymprecice_openfoam.checks import adapter_module
+
+    assert adapter_module("Temperature") == "CHT"
+    assert adapter_module("Heat-Flux") == "CHT"
+    assert adapter_module("FlowTemperature") == "FF"
+    assert adapter_module("Velocity") == "FF"
+    assert adapter_module("DisplacementDelta") == "FSI"
+    assert adapter_module("Colour") is None
+
+
 def test_a_patch_absent_from_the_boundary_file(capsys, tmp_path: Path) -> None:
     case = _case(tmp_path)
     pdict = case / "fluid-openfoam" / "system" / "preciceDict"

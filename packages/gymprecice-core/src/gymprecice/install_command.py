@@ -56,6 +56,13 @@ def add_install_parser(sub: Any) -> None:
         metavar="STEP",
         help="what to build, with what it requires (default: all; see --list)",
     )
+    p.add_argument(
+        "--skip",
+        action="append",
+        default=[],
+        metavar="STEP",
+        help="leave this step out (repeatable; still built when a wanted step requires it)",
+    )
     p.add_argument("--list", action="store_true", help="list the steps and their state")
     p.add_argument("--force", action="store_true", help="rebuild even what is built")
     p.add_argument("--jobs", type=int, default=None, help="parallel compile jobs (default: CPUs)")
@@ -70,7 +77,7 @@ def cmd_install(args: argparse.Namespace) -> int:
             print(f"{mark}{check.name.removeprefix('stack: '):<16} {check.detail}")
         return 0
     try:
-        ordered = order_steps(steps, args.steps)
+        ordered = order_steps(steps, args.steps, skip=args.skip)
     except BuildError as exc:
         print(f"gymprecice install: {exc}")
         return 2

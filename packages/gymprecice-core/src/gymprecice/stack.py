@@ -298,8 +298,15 @@ def _locked(prefix: Path) -> Iterator[None]:
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
-def order_steps(steps: Sequence[InstallStep], wanted: Sequence[str]) -> list[InstallStep]:
-    """``wanted`` (or all, for ``"all"``) with what they require first, in dependency order."""
+def order_steps(
+    steps: Sequence[InstallStep], wanted: Sequence[str], skip: Sequence[str] = ()
+) -> list[InstallStep]:
+    """``wanted`` (or all, for ``"all"``) with what they require first, in dependency order.
+
+    ``skip`` leaves steps out of what is wanted (a set-up that opts out of one solver, e.g.
+    ``--skip fenics``); a skipped step that a wanted one requires is still built, and a name
+    no installed plugin offers is ignored (opting out of what is not there is no error).
+    """
     by_name = {s.name: s for s in steps}
     unknown = [w for w in wanted if w != "all" and w not in by_name]
     if unknown:
@@ -307,6 +314,7 @@ def order_steps(steps: Sequence[InstallStep], wanted: Sequence[str]) -> list[Ins
             f"unknown install step {', '.join(unknown)}; known: all, {', '.join(by_name)}"
         )
     names = list(by_name) if "all" in wanted or not wanted else list(wanted)
+    names = [n for n in names if n not in skip]
     ordered: list[InstallStep] = []
 
     def visit(name: str, chain: tuple[str, ...]) -> None:

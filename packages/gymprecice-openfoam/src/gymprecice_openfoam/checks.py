@@ -209,7 +209,46 @@ def _precice_dict_problems(solver: SolverContext, pdict: PreciceDict) -> list[st
                     f"which {xml} does not define (its data are {sorted(precice.data)}); fix "
                     "readData/writeData"
                 )
+                continue
+            module = adapter_module(data)
+            if pdict.modules and module is not None and module not in pdict.modules:
+                problems.append(
+                    f"{pdict.path}: interface {interface.name!r} exchanges {data!r}, which the "
+                    f"OpenFOAM-preCICE adapter's {module} module handles, but 'modules' is "
+                    f"({' '.join(pdict.modules)}); add it: 'modules "
+                    f"({' '.join([*pdict.modules, module])});'"
+                )
     return problems
+
+
+#: the OpenFOAM-preCICE adapter (1.x) hands a data name to the module whose prefixes it
+#: starts with (``CHT.C``, ``FF.C``, ``FSI.C``); longer prefixes first, as the adapter tests
+_MODULE_DATA = (
+    ("CHT", ("Sink-Temperature", "Temperature", "Heat-Flux", "Heat-Transfer-Coefficient")),
+    (
+        "FF",
+        (
+            "VelocityGradient",
+            "Velocity",
+            "PressureGradient",
+            "Pressure",
+            "FlowTemperatureGradient",
+            "FlowTemperature",
+            "AlphaGradient",
+            "Alpha",
+            "Phi",
+        ),
+    ),
+    ("FSI", ("Force", "DisplacementDelta", "Displacement", "Stress")),
+)
+
+
+def adapter_module(data: str) -> str | None:
+    """The adapter module that reads or writes ``data`` (``None``: none of them)."""
+    for module, prefixes in _MODULE_DATA:
+        if data.startswith(prefixes):
+            return module
+    return None
 
 
 def patch_problems(case_dir: Path) -> list[str]:

@@ -119,6 +119,21 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             held_out_starts=True,
             feedback_signal=None,
         ),
+        TutorialEnv(
+            "heated-plate",
+            "gymprecice/HeatedPlate-v0",
+            "gymprecice_tutorials.heated_plate.environment:HeatedPlateEnv",
+            "conjugate heat transfer: hold the plate's interface temperature with a heater "
+            "(OpenFOAM fluid; OpenFOAM or FEniCS plate)",
+            double=False,
+            recipe=False,
+            open_loop_frequency=0.5,
+            rollout_time=None,
+            action_unit="K",
+            action_bound=None,
+            objective="tracking_error",
+            baseline_kwargs=(("uncontrolled", True),),
+        ),
     )
 }
 

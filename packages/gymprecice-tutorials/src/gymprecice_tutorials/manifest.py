@@ -53,6 +53,7 @@ PACKAGES = (
     "gymprecice-core",
     "gymprecice-openfoam",
     "gymprecice-dealii",
+    "gymprecice-fenics",
     "gymprecice-tutorials",
     "gymnasium",
     "stable-baselines3",

@@ -30,6 +30,8 @@ _NEEDS: dict[str, tuple[str, ...]] = {
     "rotating-cylinder-fast": ("pyprecice", "openfoam", "blockmesh"),
     "perpendicular-flap": ("pyprecice", "openfoam", "deal.ii", "elasticity"),
     "perpendicular-flap-fast": ("pyprecice", "openfoam", "deal.ii", "elasticity"),
+    # the OpenFOAM plate by default; solid="fenics" needs the FEniCS solver environment
+    "heated-plate": ("pyprecice", "openfoam", "blockmesh"),
 }
 
 

@@ -1,0 +1,371 @@
+"""HeatedPlate-v0: hold the plate's interface temperature at a setpoint with a heater.
+
+Task
+----
+A plate (1 x 0.25, conductivity 100 W/(m K), diffusivity 1 m²/s) lies under a channel
+flow entering at 300 K. A heater holds the plate's bottom at a temperature the agent
+chooses; the agent must keep the mean temperature of the plate's top (the fluid-solid
+interface) at a setpoint while the flow carries heat away. Two things make feedback
+matter: the fluid above the plate warms up over the episode (so the heater temperature
+that holds the setpoint drifts down), and the inflow velocity steps to another value at
+an instant the agent does not know (a faster flow cools the plate).
+
+* **Action** ``(1,)``: the heater temperature in K, within ``[300, 340]`` (clipped). The
+  case ramps it linearly across the step's 10 time windows.
+* **Observation** ``(4,)``: the mean interface temperature minus the setpoint (K), its
+  change over the last step (K), the heater temperature minus 310 K (the tutorial's fixed
+  bottom temperature), and the inflow velocity (m/s).
+* **Reward**: ``-(|T - T_set| + actuation_cost * |T_heater - 310 K|)`` with ``T`` the mean
+  interface temperature at the step's end: the tracking error in K plus the heater's
+  departure from the tutorial's 310 K, weighted by ``actuation_cost`` (default 0.02).
+* **Episode**: each ``reset()`` first drives the coupled case for ``settle_time``
+  (default 0.3 s, not part of the episode) at the tutorial's conditions (heater 310 K,
+  inflow 0.1 m/s); the episode then lasts ``episode_time`` (default 2 s, 20 actions of
+  0.1 s) and is truncated at its end. There is no terminal state.
+
+What a start is
+---------------
+A start is a setpoint and an inflow step ``(setpoint, step_time, velocity)``: the inflow
+changes from 0.1 m/s to ``velocity`` at ``step_time`` (seconds into the episode). Training
+draws starts from the episode seed on a grid; ``reset(options={"split": "eval"})`` takes
+:data:`EVAL_STARTS` ``[seed % 3]``, which lie between training's grid points.
+
+The solid
+---------
+``solid="openfoam"`` (laplacianFoam, 32 x 16 cells) or ``solid="fenics"`` (the FEniCS
+script, 100 x 25 linear elements, run by the gymprecice-fenics plugin in its solver
+environment). Both are the same plate: measured over one uncontrolled episode, their mean
+interface temperatures agree to within :data:`SOLID_AGREEMENT_K` (see docs/training.md).
+``double=True`` runs the env on gymprecice's test double, a lumped plate
+(:mod:`.double`), for tests without solvers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import gymnasium as gym
+import numpy as np
+
+from gymprecice.core import Adapter
+from gymprecice_tutorials.case_files import write_case_files
+from gymprecice_tutorials.heated_plate import CASE_DIR
+
+__all__ = [
+    "ACTION_TIME",
+    "EVAL_STARTS",
+    "HEATER_RANGE",
+    "SOLIDS",
+    "HeatedPlateEnv",
+    "Start",
+    "case_files",
+    "draw_start",
+]
+
+#: preCICE time window (s) and the time one action spans (10 windows)
+WINDOW = 0.01
+ACTION_TIME = 0.1
+#: the heater temperature range (K) and the tutorial's fixed bottom temperature
+HEATER_RANGE = (300.0, 340.0)
+REFERENCE_HEATER = 310.0
+#: the tutorial's inflow velocity (m/s), before an episode's step
+REFERENCE_INFLOW = 0.1
+INFLOW_RANGE = (0.03, 0.3)
+SETPOINT_RANGE = (304.0, 308.0)
+#: solver directory of each plate
+SOLIDS = {"openfoam": "solid-openfoam", "fenics": "solid-fenics"}
+#: the largest difference (K) between the two plates' mean interface temperature over one
+#: uncontrolled episode that the real-stack test accepts
+SOLID_AGREEMENT_K = 0.05
+
+
+class Start(NamedTuple):
+    """An episode's setpoint (K) and its inflow step: to ``velocity`` at ``step_time``."""
+
+    setpoint: float
+    step_time: float
+    velocity: float
+
+
+#: held-out starts (``reset(options={"split": "eval"})``, ``seed % 3``): setpoints, step
+#: times and velocities half a grid step away from every training draw (a step time is
+#: when, after settling, the inflow changes; it lies on the 0.1 s action grid)
+EVAL_STARTS = (
+    Start(305.25, 0.5, 0.045),
+    Start(306.75, 1.1, 0.255),
+    Start(307.25, 0.7, 0.165),
+)
+
+
+def draw_start(rng: np.random.Generator, episode_time: float) -> Start:
+    """A training start: setpoint on a 0.5 K grid, step time on even tenths of a second
+    (the action grid's every other instant), velocity on a 0.03 m/s grid; the held-out
+    starts lie between grid points (quarter kelvins, odd tenths, 0.015 m/s off)."""
+    setpoints = np.arange(SETPOINT_RANGE[0], SETPOINT_RANGE[1] + 1e-9, 0.5)
+    last = max(0.2, min(1.4, episode_time - 0.1))
+    times = np.arange(0.2, last + 1e-9, 0.2)
+    velocities = np.arange(INFLOW_RANGE[0], INFLOW_RANGE[1] + 1e-9, 0.03)
+    return Start(
+        float(rng.choice(setpoints)), float(rng.choice(times)), float(rng.choice(velocities))
+    )
+
+
+def case_files(solid: str, end_time: float) -> dict[str, str]:
+    """The packaged case with one plate (``solid``) and the coupling ending at ``end_time``."""
+    if solid not in SOLIDS:
+        raise ValueError(f"solid must be one of {sorted(SOLIDS)}, got {solid!r}")
+    keep = SOLIDS[solid]
+    files: dict[str, str] = {}
+    for path in sorted(CASE_DIR.rglob("*")):
+        rel = path.relative_to(CASE_DIR).as_posix()
+        top = rel.split("/", 1)[0]
+        if not path.is_file() or (top in SOLIDS.values() and top != keep):
+            continue
+        files[rel] = path.read_text()
+    config = json.loads(files["gymprecice-config.json"])
+    config["environment"] = {"name": f"heated_plate-{solid}"}
+    config["physics_simulation_engine"]["solvers"]["solid"] = {
+        "kind": solid,
+        "path": keep,
+        "participant": "Solid",
+    }
+    files["gymprecice-config.json"] = json.dumps(config, indent=4) + "\n"
+    files["precice-config.xml"] = re.sub(
+        r'<max-time value="[^"]*" />',
+        f'<max-time value="{end_time:.10g}" />',
+        files["precice-config.xml"],
+    )
+    return files
+
+
+class HeatedPlateEnv(Adapter):
+    """Drive the heater to hold the plate's interface temperature (see the module docstring)."""
+
+    PLATE = "plate"
+    HEATER = "heater"
+    INLET = "inlet"
+
+    def __init__(
+        self,
+        options: Mapping[str, Any] | str | Path | None = None,
+        idx: int = 0,
+        *,
+        solid: str = "openfoam",
+        episode_time: float = 2.0,
+        settle_time: float = 0.3,
+        actuation_cost: float = 0.02,
+        uncontrolled: bool = False,
+        double: bool = False,
+        run_root: str | Path | None = None,
+        **kwargs: Any,
+    ) -> None:
+        for name, value in (("episode_time", episode_time), ("settle_time", settle_time)):
+            steps = value / ACTION_TIME
+            if not math.isfinite(value) or value < 0 or abs(steps - round(steps)) > 1e-9:
+                raise ValueError(
+                    f"{name} must be a multiple of {ACTION_TIME} s (one action), got {value}"
+                )
+        if episode_time <= 0 or settle_time <= 0:
+            # The interface temperature reaches the controller at the end of a window: the
+            # first observation of an episode needs at least one settling step before it.
+            raise ValueError(
+                f"episode_time and settle_time must be positive, got {episode_time} and "
+                f"{settle_time}"
+            )
+        self.solid = solid
+        self.episode_time = float(episode_time)
+        self.settle_time = float(settle_time)
+        end_time = self.settle_time + self.episode_time
+        if options is None and double:
+            from gymprecice_tutorials.heated_plate.double import double_case_files
+
+            options = write_case_files("heated-plate-double", double_case_files(end_time), run_root)
+        elif options is None:
+            options = write_case_files(
+                f"heated-plate-{solid}", case_files(solid, end_time), run_root
+            )
+        elif double:
+            raise ValueError(
+                "double=True runs the packaged case on the test double; with a case of your "
+                "own (options) leave double out"
+            )
+        super().__init__(options, idx, run_root=run_root, **kwargs)
+        if not any(s.kind == "openfoam" for s in self.config.solvers.values()):
+            # No fluid mesh a plugin could read (the test double's lumped plate): any
+            # vertices do, the controller writes uniform values and reads a mean.
+            for name, n in ((self.INLET, 41), (self.HEATER, 32), (self.PLATE, 161)):
+                x = np.linspace(0.0, 1.0, n)
+                self.set_interface_vertices(name, np.column_stack([x, np.zeros(n)]))
+        self.actuation_cost = float(actuation_cost)
+        self.uncontrolled = bool(uncontrolled)
+        self.action_space = gym.spaces.Box(
+            low=np.float32(HEATER_RANGE[0]), high=np.float32(HEATER_RANGE[1]), shape=(1,)
+        )
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(4,), dtype=np.float32)
+        self.start = EVAL_STARTS[0]
+        self._split, self._split_seed = "train", None
+        self._heater = REFERENCE_HEATER
+        self._temperature = math.nan
+        self._previous = math.nan
+
+    # -- the controller's physics ------------------------------------------------------------
+    def inflow_velocity(self, time: float) -> float:
+        """The inflow velocity (m/s) at simulated ``time``: the episode's step after settling."""
+        if time < self.settle_time + self.start.step_time - 1e-9:
+            return REFERENCE_INFLOW
+        return self.start.velocity
+
+    def heater_temperature(self, action: Any) -> float:
+        """The heater temperature an action asks for, clipped to the action space."""
+        if self.uncontrolled or self.time < self.settle_time - 1e-9:
+            return REFERENCE_HEATER
+        value = float(np.asarray(action, dtype=float).reshape(-1)[0])
+        return float(np.clip(value, *HEATER_RANGE))
+
+    def plate_temperature(self, values: np.ndarray) -> float:
+        """The mean interface temperature, weighted by face area where the fluid gives it."""
+        areas = self.interface_geometry[self.PLATE].areas
+        values = np.asarray(values, dtype=float).reshape(-1)
+        if areas is None or len(areas) != len(values):
+            return float(np.mean(values))
+        return float(np.average(values, weights=np.asarray(areas, dtype=float)))
+
+    # -- the four user methods -------------------------------------------------------------
+    def _get_action(self, action: Any, write_var_list: list) -> dict:
+        self._heater = self.heater_temperature(action)
+        # The velocity written now holds over the step: the one at the step's start.
+        velocity = self.inflow_velocity(self.time)
+        out: dict[Any, np.ndarray] = {}
+        for ref in write_var_list:
+            n = len(self.interface_geometry[ref.interface].coordinates)
+            if ref.interface == self.INLET:
+                out[ref] = np.column_stack([np.full(n, velocity), np.zeros(n)])
+            else:
+                out[ref] = np.full(n, self._heater)
+        return out
+
+    def _get_observation(self, read_data: Any, read_var_list: list) -> np.ndarray:
+        (ref,) = [r for r in read_var_list if r.interface == self.PLATE]
+        self._previous = self._temperature
+        self._temperature = self.plate_temperature(read_data[ref])
+        change = 0.0 if math.isnan(self._previous) else self._temperature - self._previous
+        return np.array(
+            [
+                self._temperature - self.start.setpoint,
+                change,
+                self._heater - REFERENCE_HEATER,
+                self.inflow_velocity(self.time),
+            ],
+            dtype=np.float32,
+        )
+
+    def _get_reward(self) -> float:
+        error = abs(self._temperature - self.start.setpoint)
+        return -float(error + self.actuation_cost * abs(self._heater - REFERENCE_HEATER))
+
+    def _close_external_resources(self) -> None:
+        self._temperature = math.nan
+        self._previous = math.nan
+
+    def _initial_action(self) -> np.ndarray:
+        """Choose this episode's start; every run begins at the tutorial's 310 K heater."""
+        if self._split == "eval":
+            self.start = EVAL_STARTS[(self._split_seed or 0) % len(EVAL_STARTS)]
+        else:
+            self.start = draw_start(self.np_random, self.episode_time)
+        self._heater = REFERENCE_HEATER
+        return np.array([REFERENCE_HEATER], dtype=np.float32)
+
+    # -- Gymnasium API -----------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start the coupled run, drive it through ``settle_time``, return the state.
+
+        ``options={"split": "eval"}`` takes :data:`EVAL_STARTS` ``[seed % 3]`` (``seed`` 0
+        when none is given); any other split draws a training start from the seed.
+        """
+        split = (options or {}).get("split", "train")
+        if split not in ("train", "eval"):
+            raise ValueError(f"split must be 'train' or 'eval', got {split!r}")
+        self._split, self._split_seed = split, seed
+        obs, info = super().reset(seed=seed, options=options)  # draws self.start
+        while self.time < self.settle_time - 1e-9:
+            obs, _, terminated, truncated, info = super().step(
+                np.array([REFERENCE_HEATER], np.float32)
+            )
+            if terminated or truncated:
+                raise RuntimeError(
+                    f"the coupled run ended at t = {self.time:g} s while settling; the case's "
+                    "max-time must exceed settle_time"
+                )
+        info = {**info, "start": {**self.start._asdict(), "split": split}}
+        return obs, info
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Core's step, plus the applied heater temperature and the metrics in ``info``."""
+        obs, reward, terminated, truncated, info = super().step(action)
+        info["action"] = [self._heater]
+        info["metrics"] = {
+            "interface_temperature": self._temperature,
+            "tracking_error": abs(self._temperature - self.start.setpoint),
+            "heater_temperature": self._heater,
+            "inflow_velocity": float(obs[3]),
+        }
+        return obs, reward, terminated, truncated, info
+
+
+def run_constant(
+    env: HeatedPlateEnv, heater: float = REFERENCE_HEATER, *, seed: int = 0, split: str = "eval"
+) -> dict[str, np.ndarray]:
+    """One episode at a constant heater temperature; returns the time series."""
+    obs, _ = env.reset(seed=seed, options={"split": split})
+    times, temperatures, rewards = [env.time], [obs[0] + env.start.setpoint], []
+    while True:
+        obs, reward, terminated, truncated, info = env.step(np.array([heater], np.float32))
+        times.append(env.time)
+        temperatures.append(info["metrics"]["interface_temperature"])
+        rewards.append(reward)
+        if terminated or truncated:
+            break
+    return {
+        "time": np.asarray(times),
+        "temperature": np.asarray(temperatures),
+        "reward": np.asarray(rewards),
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - a manual probe
+    """``python -m gymprecice_tutorials.heated_plate.environment``: one constant-heater episode."""
+    import argparse
+    import time
+
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("--solid", choices=sorted(SOLIDS), default="openfoam")
+    parser.add_argument("--heater", type=float, default=REFERENCE_HEATER)
+    parser.add_argument("--episode-time", type=float, default=2.0)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--run-root", default=None)
+    args = parser.parse_args(argv)
+    env = HeatedPlateEnv(solid=args.solid, episode_time=args.episode_time, run_root=args.run_root)
+    started = time.perf_counter()
+    try:
+        result = run_constant(env, args.heater, seed=args.seed)
+    finally:
+        env.close()
+    for t, temperature in zip(result["time"], result["temperature"]):
+        print(f"t = {t:.2f} s  T = {temperature:.4f} K")
+    print(
+        f"{len(result['reward'])} steps, return {result['reward'].sum():.4f}, "
+        f"{time.perf_counter() - started:.1f} s wall-clock ({args.solid} plate)"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
