@@ -322,3 +322,28 @@ def test_a_solver_that_dies_while_its_output_is_awaited_ends_the_wait_at_once() 
     with pytest.raises(TimeoutError, match=r"no row for time 1\.0"):
         reader.wait_until(1.0, timeout=1.2)
     assert 1.1 < _time.monotonic() - started < 2.0
+
+
+def test_of_two_dead_solvers_the_cause_is_named_not_the_partner_precice_aborted() -> None:
+    """A solid killed from outside makes preCICE abort the fluid a moment later; when the
+    env looks at both dead, the solid is the culprit."""
+    import signal
+
+    from gymprecice.coupling import PARTNER_LOST, _culprit_first
+
+    class Dead:
+        def __init__(self, name: str, status: int, log: str) -> None:
+            self.name, self._status, self._log = name, status, log
+
+        def poll(self) -> int:
+            return self._status
+
+        def log_tail(self, lines: int = 30) -> str:
+            return self._log
+
+    aborted = Dead("fluid", -signal.SIGABRT, f"ERROR: Receiving data failed. {PARTNER_LOST}")
+    killed = Dead("solid", -signal.SIGKILL, "")
+    crashed = Dead("solid", 1, "FOAM FATAL ERROR")
+    assert [s.name for s in _culprit_first([aborted, killed])] == ["solid", "fluid"]
+    assert [s.name for s in _culprit_first([aborted, crashed])] == ["solid", "fluid"]
+    assert [s.name for s in _culprit_first([crashed, aborted])] == ["solid", "fluid"]

@@ -33,6 +33,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from gymprecice.divergence import HARD_FAULT_STATUSES
 from gymprecice.errors import (
     CouplingError,
     PreciceNotInstalledError,
@@ -206,6 +207,26 @@ def _serve_calls(requests: queue.SimpleQueue[Any]) -> None:
             future.set_exception(exc)
 
 
+#: what preCICE logs in a participant whose partner went away (3.4.1's sockets): its
+#: exit is a consequence of another solver's, never the cause
+PARTNER_LOST = "This often means that the other participant exited"
+
+
+def _culprit_first(exited: Sequence[SolverProcess]) -> list[SolverProcess]:
+    """Exited solvers, the likeliest cause first.
+
+    A solver killed from outside or by its binary (SIGKILL, SIGSEGV, SIGBUS) comes first;
+    one whose log says preCICE lost its partner comes last; the rest keep their order.
+    """
+
+    def rank(solver: SolverProcess) -> int:
+        if solver.poll() in HARD_FAULT_STATUSES:
+            return 0
+        return 2 if PARTNER_LOST in solver.log_tail(40) else 1
+
+    return sorted(exited, key=rank)
+
+
 class CouplingSession:
     """One episode's coupling: a worker, the solvers it talks to, and the watchdog."""
 
@@ -278,12 +299,12 @@ class CouplingSession:
 
         Called while the controller waits for something other than preCICE, a solver's
         output file for instance: a solver that died there would otherwise be noticed
-        only when that wait times out.
+        only when that wait times out. When several have died since the last look, the
+        one named is the cause (:func:`_culprit_first`), not a partner that preCICE
+        aborted because the cause went away.
         """
-        for solver in self.solvers:
+        for solver in _culprit_first([s for s in self.solvers if s.poll() is not None]):
             status = solver.poll()
-            if status is None:
-                continue
             what = (
                 describe_returncode(status)
                 if status != 0
