@@ -529,18 +529,23 @@ class Participant:
                     "call to setMeshVertex() or setMeshVertices()."
                 )
 
+    def _connectivity_rows(self, mesh_name: str, vertices: Any, per: int, api: str) -> None:
+        """``set_mesh_edges``/``quads``/``tetrahedra``: rows of ``per`` vertex ids, checked
+        for their shape as pyprecice does before it calls preCICE."""
+        check_array_like(vertices, "vertices", api)
+        arr = np.asarray(vertices)
+        if len(arr) > 0:
+            _, n = arr.shape
+            assert n == per, (
+                f"Provided vertices are not of a [N x {per}] format, but instead of a [N x {n}]"
+            )
+        self._connectivity(convert(mesh_name), arr.reshape(-1), per)
+
     def set_mesh_edge(self, mesh_name: str, first_vertex_id: int, second_vertex_id: int) -> None:
         self._connectivity(convert(mesh_name), [first_vertex_id, second_vertex_id], 2)
 
     def set_mesh_edges(self, mesh_name: str, vertices: Any) -> None:
-        check_array_like(vertices, "vertices", "set_mesh_edges")
-        arr = np.asarray(vertices)
-        if len(arr) > 0:
-            _, n = arr.shape
-            assert n == 2, (
-                f"Provided vertices are not of a [N x 2] format, but instead of a [N x {n}]"
-            )
-        self._connectivity(convert(mesh_name), arr.reshape(-1), 2)
+        self._connectivity_rows(mesh_name, vertices, 2, "set_mesh_edges")
 
     def set_mesh_triangle(
         self, mesh_name: str, first_vertex_id: int, second_vertex_id: int, third_vertex_id: int
@@ -565,14 +570,7 @@ class Participant:
         self._connectivity(convert(mesh_name), ids, 4)
 
     def set_mesh_quads(self, mesh_name: str, vertices: Any) -> None:
-        check_array_like(vertices, "vertices", "set_mesh_quads")
-        arr = np.asarray(vertices)
-        if len(arr) > 0:
-            _, n = arr.shape
-            assert n == 4, (
-                f"Provided vertices are not of a [N x 4] format, but instead of a [N x {n}]"
-            )
-        self._connectivity(convert(mesh_name), arr.reshape(-1), 4)
+        self._connectivity_rows(mesh_name, vertices, 4, "set_mesh_quads")
 
     def set_mesh_tetrahedron(
         self,
@@ -586,14 +584,7 @@ class Participant:
         self._connectivity(convert(mesh_name), ids, 4)
 
     def set_mesh_tetrahedra(self, mesh_name: str, vertices: Any) -> None:
-        check_array_like(vertices, "vertices", "set_mesh_tetrahedra")
-        arr = np.asarray(vertices)
-        if len(arr) > 0:
-            _, n = arr.shape
-            assert n == 4, (
-                f"Provided vertices are not of a [N x 4] format, but instead of a [N x {n}]"
-            )
-        self._connectivity(convert(mesh_name), arr.reshape(-1), 4)
+        self._connectivity_rows(mesh_name, vertices, 4, "set_mesh_tetrahedra")
 
     def reset_mesh(self, mesh_name: str) -> None:
         self._require_experimental("resetMesh")
