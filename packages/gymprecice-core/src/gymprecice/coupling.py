@@ -212,6 +212,13 @@ def _serve_calls(requests: queue.SimpleQueue[Any]) -> None:
 PARTNER_LOST = "This often means that the other participant exited"
 
 
+def _why_exited(status: int | None) -> str:
+    """A solver's exit, said for an error raised while the coupling still runs."""
+    if status in (0, None):
+        return "exited while the coupling was still running"
+    return describe_returncode(status)
+
+
 def _culprit_first(exited: Sequence[SolverProcess]) -> list[SolverProcess]:
     """Exited solvers, the likeliest cause first.
 
@@ -304,13 +311,8 @@ class CouplingSession:
         aborted because the cause went away.
         """
         for solver in _culprit_first([s for s in self.solvers if s.poll() is not None]):
-            status = solver.poll()
-            what = (
-                describe_returncode(status)
-                if status != 0
-                else "exited while the coupling was still running"
-            )
-            self._fail(SolverCrashedError, solver, what + self._diagnosis(solver), op)
+            what = _why_exited(solver.poll()) + self._diagnosis(solver)
+            self._fail(SolverCrashedError, solver, what, op)
 
     # -- the watchdog ---------------------------------------------------------------------
     @staticmethod
@@ -403,12 +405,8 @@ class CouplingSession:
                 status = solver.poll()
             if ending and status == 0:
                 continue
-            what = (
-                describe_returncode(status)
-                if status not in (0, None)
-                else "exited while the coupling was still running"
-            )
-            what += "; the data of this step is discarded" + self._diagnosis(solver)
+            what = _why_exited(status) + "; the data of this step is discarded"
+            what += self._diagnosis(solver)
             self._fail(SolverCrashedError, solver, what, op)
 
     def _diagnosis(self, solver: SolverProcess) -> str:
