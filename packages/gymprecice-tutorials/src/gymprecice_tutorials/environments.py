@@ -46,6 +46,9 @@ class TutorialEnv:
     #: ``gymprecice feedback``'s default signal: the ``info["metrics"]`` entry fed back
     #: (``None``: none; the command then needs ``--signal``)
     feedback_signal: str | None = "Cl"
+    #: the shipped policy that ``--policy shipped`` means on this env (``None``: the one
+    #: named after it); an env evaluated with the policy of its training case names it
+    shipped_policy: str | None = None
 
 
 ENVIRONMENTS: dict[str, TutorialEnv] = {
@@ -126,6 +129,7 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "conjugate heat transfer: hold the plate's interface temperature with a heater "
             "(OpenFOAM fluid; OpenFOAM or FEniCS plate)",
             double=False,
+            shipped_policy="heated-plate-fast",
             recipe=False,
             open_loop_frequency=0.5,
             rollout_time=None,
@@ -133,6 +137,25 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             action_bound=None,
             objective="tracking_error",
             baseline_kwargs=(("uncontrolled", True),),
+            held_out_starts=True,
+            feedback_signal=None,
+        ),
+        TutorialEnv(
+            "heated-plate-fast",
+            "gymprecice/HeatedPlateFast-v0",
+            "gymprecice_tutorials.heated_plate.fast:HeatedPlateFastEnv",
+            "the heated plate's training case: a coarser fluid, 0.05 s windows, explicit "
+            "coupling (the task and starts of heated-plate)",
+            double=False,
+            recipe=False,
+            open_loop_frequency=0.5,
+            rollout_time=None,
+            action_unit="K",
+            action_bound=None,
+            objective="tracking_error",
+            baseline_kwargs=(("uncontrolled", True),),
+            held_out_starts=True,
+            feedback_signal=None,
         ),
     )
 }

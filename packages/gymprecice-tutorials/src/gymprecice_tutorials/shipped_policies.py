@@ -15,7 +15,9 @@ The commands::
     gymprecice ship-policy runs/jet-cylinder-fast/train --name jet-cylinder-fast \\
         --evaluation runs/jet-cylinder-fast/evaluate          # ship a training run
 
-``--policy`` takes a shipped name, ``shipped`` (the policy named after the evaluated env)
+``--policy`` takes a shipped name, ``shipped`` (the policy named after the evaluated env, or
+the one of its training case that the env's table entry names: ``heated-plate`` takes
+``heated-plate-fast``)
 or a path (a model ``.zip``, a training directory, a policy directory); a bare word that
 names a shipped policy is that policy (write ``./NAME`` for a directory of that name).
 
@@ -196,8 +198,9 @@ def resolve_policy(
         if env is None:
             raise PolicyError("--policy shipped means the policy named after the env; name one")
         info = env if isinstance(env, TutorialEnv) else find_environment(env)
-        if (root / info.name / METADATA_NAME).is_file():
-            return _shipped(root, info.name)
+        name = info.shipped_policy or info.name
+        if (root / name / METADATA_NAME).is_file():
+            return _shipped(root, name)
         raise PolicyError(
             f"no policy is shipped for {info.name} (shipped: {_names(directory)}); pass "
             "--policy NAME for one of those, or a model .zip or training directory"

@@ -186,9 +186,7 @@ class HeatedPlateEnv(Adapter):
 
             options = write_case_files("heated-plate-double", double_case_files(end_time), run_root)
         elif options is None:
-            options = write_case_files(
-                f"heated-plate-{solid}", case_files(solid, end_time), run_root
-            )
+            options = write_case_files(*self.packaged_case(end_time), run_root)
         elif double:
             raise ValueError(
                 "double=True runs the packaged case on the test double; with a case of your "
@@ -212,6 +210,20 @@ class HeatedPlateEnv(Adapter):
         self._heater = REFERENCE_HEATER
         self._temperature = math.nan
         self._previous = math.nan
+
+    def packaged_case(self, end_time: float) -> tuple[str, dict[str, str]]:
+        """The packaged case's name and files for a run ending at ``end_time`` (a training
+        variant overrides this)."""
+        return f"heated-plate-{self.solid}", case_files(self.solid, end_time)
+
+    @property
+    def held_out_starts(self) -> tuple[str, ...]:
+        """The held-out starts, in the order ``reset(options={"split": "eval", "start": k})``
+        takes them."""
+        return tuple(
+            f"setpoint {s.setpoint:g} K, inflow -> {s.velocity:g} m/s at {s.step_time:g} s"
+            for s in EVAL_STARTS
+        )
 
     # -- the controller's physics ------------------------------------------------------------
     def inflow_velocity(self, time: float) -> float:
@@ -288,12 +300,21 @@ class HeatedPlateEnv(Adapter):
         """Start the coupled run, drive it through ``settle_time``, return the state.
 
         ``options={"split": "eval"}`` takes :data:`EVAL_STARTS` ``[seed % 3]`` (``seed`` 0
-        when none is given); any other split draws a training start from the seed.
+        when none is given), or ``[k]`` with ``"start": k``; any other split draws a training
+        start from the seed.
         """
         split = (options or {}).get("split", "train")
         if split not in ("train", "eval"):
             raise ValueError(f"split must be 'train' or 'eval', got {split!r}")
-        self._split, self._split_seed = split, seed
+        start = (options or {}).get("start")
+        if start is not None and not (
+            isinstance(start, int) and not isinstance(start, bool) and 0 <= start < len(EVAL_STARTS)
+        ):
+            raise ValueError(
+                f"reset option start={start!r}: {len(EVAL_STARTS)} held-out starts, use 0 to "
+                f"{len(EVAL_STARTS) - 1}"
+            )
+        self._split, self._split_seed = split, seed if start is None else start
         obs, info = super().reset(seed=seed, options=options)  # draws self.start
         while self.time < self.settle_time - 1e-9:
             obs, _, terminated, truncated, info = super().step(

@@ -9,9 +9,14 @@ with ``dt`` the action time (0.1 s) and the integral clipped so the heater stays
 its range (no wind-up). :func:`sweep` runs every ``(kp, ki, kd)`` of a grid on a few
 *training* starts (never the held-out ones), ranks them by the mean tracking error plus
 the actuation cost (the negated mean reward), and :func:`main` evaluates the best one,
-the uncontrolled plate and the best constant heater on the held-out starts:
+the uncontrolled plate, constant heaters and any trained policy (``--policy``) on the
+held-out starts, all in one table and one figure:
 
     python -m gymprecice_tutorials.heated_plate.pid --solid openfoam --out runs/plate-pid
+    python -m gymprecice_tutorials.heated_plate.pid --sweep-on fast --policy shipped
+
+``--sweep-on fast`` sweeps on the training case (HeatedPlateFast-v0, 2 s an episode
+instead of 52 s) and evaluates on HeatedPlate-v0: the same split as a trained policy's.
 """
 
 from __future__ import annotations
@@ -67,6 +72,8 @@ class Rollout:
     split: str
     tracking_error: float
     mean_reward: float
+    #: the mean ``|heater - 310 K|`` (K): what the reward's actuation cost weighs
+    actuation: float
     time: list[float]
     temperature: list[float]
     heater: list[float]
@@ -102,6 +109,7 @@ def rollout(
         split,
         float(np.mean(errors)),
         float(np.mean(rewards)),
+        float(np.mean(np.abs(np.asarray(heaters) - REFERENCE_HEATER))),
         times,
         temperatures,
         heaters,
@@ -111,6 +119,36 @@ def rollout(
 
 def constant(heater: float) -> Callable[[np.ndarray], np.ndarray]:
     return lambda _obs: np.array([heater], dtype=np.float32)
+
+
+class PolicyController:
+    """A trained policy as a controller (obs -> heater), acting as evaluation does: the
+    observation normalised with the frozen statistics saved beside the model, the
+    deterministic action mapped from ``[-1, 1]`` onto the heater's range."""
+
+    def __init__(self, spec: str, env: str = "heated-plate") -> None:
+        from gymprecice_tutorials.envs import find_model, load_model, vecnormalize_path
+        from gymprecice_tutorials.shipped_policies import resolve_policy
+
+        policy = resolve_policy(spec, env)
+        path, _ = find_model(Path(policy.model))
+        self.model = load_model(path)
+        self.stats = None
+        if vecnormalize_path(path).is_file():
+            import pickle
+
+            with vecnormalize_path(path).open("rb") as handle:
+                self.stats = pickle.load(handle)
+            self.stats.training = False
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float32)
+        if self.stats is not None:
+            x = self.stats.normalize_obs(x)
+        action, _ = self.model.predict(x, deterministic=True)
+        unit = float(np.clip(np.asarray(action).reshape(-1)[0], -1.0, 1.0))
+        low, high = HEATER_RANGE
+        return np.array([low + (unit + 1.0) * 0.5 * (high - low)], dtype=np.float32)
 
 
 def sweep(
@@ -185,23 +223,49 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs s
     parser.add_argument("--kd", default="0", help="derivative gains")
     parser.add_argument("--seeds", default="0", help="training starts of the sweep")
     parser.add_argument("--constants", default="305,310,315,320", help="constant heaters (K)")
+    parser.add_argument(
+        "--sweep-on",
+        choices=["full", "fast"],
+        default="full",
+        help="sweep on HeatedPlate-v0 itself or on its training case HeatedPlateFast-v0",
+    )
+    parser.add_argument(
+        "--policy",
+        action="append",
+        default=[],
+        metavar="SPEC",
+        help="a trained policy to evaluate beside the baselines (repeatable): shipped, a "
+        "shipped name, a training directory or model .zip",
+    )
     parser.add_argument("--out", default="gymprecice-runs/heated-plate-pid")
     args = parser.parse_args(argv)
     floats = lambda text: [float(v) for v in text.split(",") if v]  # noqa: E731
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    policies = {f"policy {spec}": PolicyController(spec) for spec in args.policy}
     env = HeatedPlateEnv(solid=args.solid, double=args.double, run_root=out / "runs")
     started = time.perf_counter()
     try:
         grid = list(itertools.product(floats(args.kp), floats(args.ki), floats(args.kd)))
-        print(f"sweep of {len(grid)} gains on training starts {args.seeds}:")
-        ranked = sweep(env, grid, [int(s) for s in args.seeds.split(",")])
+        where = "HeatedPlateFast-v0" if args.sweep_on == "fast" else "HeatedPlate-v0"
+        print(f"sweep of {len(grid)} gains on training starts {args.seeds} of {where}:")
+        if args.sweep_on == "fast":
+            from gymprecice_tutorials.heated_plate.fast import HeatedPlateFastEnv
+
+            sweep_env = HeatedPlateFastEnv(double=args.double, run_root=out / "runs")
+            try:
+                ranked = sweep(sweep_env, grid, [int(s) for s in args.seeds.split(",")])
+            finally:
+                sweep_env.close()
+        else:
+            ranked = sweep(env, grid, [int(s) for s in args.seeds.split(",")])
         best = ranked[0][0]
         print(f"best: kp={best[0]:g} ki={best[1]:g} kd={best[2]:g}")
         controllers: dict[str, Any] = {
             "uncontrolled": constant(REFERENCE_HEATER),
             **{f"constant {h:g} K": constant(h) for h in floats(args.constants)},
             f"PID kp={best[0]:g} ki={best[1]:g} kd={best[2]:g}": PIDController(*best),
+            **policies,
         }
         evaluated = []
         for label, controller in controllers.items():
@@ -213,8 +277,10 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs s
             errors = [r.tracking_error for r in runs]
             rewards = [r.mean_reward for r in runs]
             print(
-                f"{label:<28} tracking error {np.mean(errors):.4f} ± {np.std(errors):.4f} K, "
-                f"mean reward {np.mean(rewards):.4f}"
+                f"{label:<28} tracking error {np.mean(errors):.4f} ± {np.std(errors):.4f} K "
+                f"({', '.join(f'{e:.3f}' for e in errors)}), mean reward "
+                f"{np.mean(rewards):.4f}, actuation "
+                f"{np.mean([r.actuation for r in runs]):.2f} K"
             )
     finally:
         env.close()
@@ -226,6 +292,9 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs s
                 "evaluation": [asdict(r) for r in evaluated],
                 "wall_s": time.perf_counter() - started,
                 "settle_time": env.settle_time,
+                "solid": args.solid,
+                "sweep_on": args.sweep_on,
+                "policies": args.policy,
             },
             indent=1,
         )

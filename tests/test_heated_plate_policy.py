@@ -1,0 +1,104 @@
+"""The shipped heated-plate policy, as a user runs it: ``--policy shipped`` on the double
+and on the real stack, against the uncontrolled plate from every held-out start.
+
+* ``gymprecice evaluate heated-plate --policy shipped`` finds the policy of the env's
+  training case (``heated-plate-fast``), and on the lumped-plate double tracks the setpoint
+  better than the uncontrolled plate from each held-out start;
+* on the real stack (``precice``/``openfoam``): 1 s of the training case from each of the
+  three held-out starts, then 0.5 s of HeatedPlate-v0 itself (the 12,013-cell fluid) from
+  one, each with a lower tracking error than the uncontrolled plate's.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from gymprecice_tutorials.environments import find_environment
+from gymprecice_tutorials.shipped_policies import POLICIES_DIR_ENV, resolve_policy
+
+
+def _cli(cwd: Path, *args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k != POLICIES_DIR_ENV}
+    return subprocess.run(
+        [sys.executable, "-m", "gymprecice", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+def _errors(cwd: Path, command: str, env: str, kwargs: dict[str, Any], *extra: str) -> list:
+    """The mean tracking error (K) of every episode of one ``gymprecice`` rollout command."""
+    out = cwd / f"{command}-{env}"
+    proc = _cli(cwd, command, env, "--env-kwargs", json.dumps(kwargs), "--out", str(out), *extra)
+    assert proc.returncode == 0, f"exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}"
+    summary = json.loads((out / "summary.json").read_text())
+    return [episode["mean_tracking_error"] for episode in summary["episodes"]]
+
+
+def test_shipped_on_the_full_env_means_the_training_cases_policy() -> None:
+    policy = resolve_policy("shipped", find_environment("heated-plate"))
+    assert policy.name == "heated-plate-fast"
+    assert policy.metadata["env"]["name"] == "heated-plate-fast"
+
+
+@pytest.mark.timeout(300)
+def test_shipped_policy_beats_the_uncontrolled_plate_on_the_double(tmp_path: Path) -> None:
+    kwargs = {"double": True}
+    uncontrolled = _errors(tmp_path, "baseline", "heated-plate", kwargs, "--all-starts")
+    controlled = _errors(
+        tmp_path, "evaluate", "heated-plate", kwargs, "--all-starts", "--policy", "shipped"
+    )
+    assert len(controlled) == len(uncontrolled) == 3
+    for start, (c, u) in enumerate(zip(controlled, uncontrolled, strict=True)):
+        assert c < u, f"held-out start {start}: {c:.3f} K controlled, {u:.3f} K uncontrolled"
+
+
+def _missing() -> list[str]:
+    missing = []
+    try:
+        import precice
+
+        if not hasattr(precice, "Participant"):
+            missing.append("pyprecice v3")
+    except ImportError:
+        missing.append("pyprecice (the preCICE library and its Python bindings)")
+    for program in ("buoyantPimpleFoam", "laplacianFoam", "blockMesh"):
+        if shutil.which(program) is None:
+            missing.append(f"OpenFOAM ({program})")
+    return missing
+
+
+@pytest.mark.precice
+@pytest.mark.openfoam
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_shipped_policy_beats_the_uncontrolled_plate_on_the_real_stack(tmp_path: Path) -> None:
+    missing = _missing()
+    if missing:
+        pytest.skip("needs " + ", ".join(missing))
+    fast = {"episode_time": 1.0}
+    uncontrolled = _errors(tmp_path, "baseline", "heated-plate-fast", fast, "--all-starts")
+    controlled = _errors(
+        tmp_path, "evaluate", "heated-plate-fast", fast, "--all-starts", "--policy", "shipped"
+    )
+    assert len(controlled) == 3
+    for start, (c, u) in enumerate(zip(controlled, uncontrolled, strict=True)):
+        assert c < u, f"held-out start {start}: {c:.3f} K controlled, {u:.3f} K uncontrolled"
+    # HeatedPlate-v0 itself, briefly: the policy transfers to the full fluid.
+    full = {"episode_time": 0.5}
+    (u,) = _errors(tmp_path, "baseline", "heated-plate", full, "--episodes", "1")
+    (c,) = _errors(
+        tmp_path, "evaluate", "heated-plate", full, "--episodes", "1", "--policy", "shipped"
+    )
+    assert c < u, f"HeatedPlate-v0: {c:.3f} K controlled, {u:.3f} K uncontrolled"
