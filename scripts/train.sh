@@ -4,6 +4,7 @@
 #   bash scripts/train.sh [extra `gymprecice train` options]     # the training case, ~2 h on 2 cores
 #   bash scripts/train.sh --paper [extra options]                 # the paper's full-fidelity run
 #   bash scripts/train.sh --flap [extra options]                  # the flap's FSI, ~1 h on 2 cores
+#   bash scripts/train.sh --plate [extra options]                 # the heated plate's CHT, ~1 h
 #
 # Default: JetCylinderFast-v0 (the jet cylinder's training case: coarse mesh, episodes from
 # a library of start snapshots, Rabault's reward and jet bound) with 2 s episodes, two
@@ -25,6 +26,14 @@
 #   .venv/bin/gymprecice evaluate perpendicular-flap-fast --episodes 3   # the 3 held-out gusts
 #   .venv/bin/gymprecice compare <sweep runs> <the evaluate run>      # docs/training.md
 #
+# --plate: HeatedPlateFast-v0, conjugate heat transfer (OpenFOAM fluid, laplacianFoam plate,
+# the controller): SAC drives the heater under the plate to hold the interface temperature
+# at a setpoint, 17,500 actions (875 episodes, about an hour), scripts/plate-sac.yml. Then:
+#
+#   .venv/bin/python -m gymprecice_tutorials.heated_plate.pid --sweep-on fast \
+#       --kp 2,3,4,6 --ki 25,50,75,100,150 --kd 0,1 --seeds 0,1,2 --constants 315 \
+#       --policy runs/heated-plate-fast/train      # against the tuned PI, docs/training.md
+#
 # Sets up the machine like the tests do, then checks it with `gymprecice doctor`: training
 # couples to real OpenFOAM through preCICE, so without preCICE (and the OpenFOAM-preCICE
 # adapter) it stops at once and says what to install. Ctrl-C saves; the same command resumes.
@@ -40,6 +49,12 @@ if [[ "${1:-}" == "--flap" ]]; then
     shift
     exec .venv/bin/gymprecice train perpendicular-flap-fast --require-solvers --n-envs 2 \
         --normalize --hyperparams scripts/ppo-fast.yml --timesteps 20000 "$@"
+fi
+if [[ "${1:-}" == "--plate" ]]; then
+    shift
+    exec .venv/bin/gymprecice train heated-plate-fast --require-solvers --algo sac --normalize \
+        --hyperparams scripts/plate-sac.yml --timesteps 17500 --eval-freq 2000 \
+        --n-eval-episodes 3 "$@"
 fi
 exec .venv/bin/gymprecice train jet-cylinder-fast --require-solvers --n-envs 2 --normalize \
     --episode-time 2 --hyperparams scripts/ppo-fast.yml --timesteps 48000 "$@"

@@ -241,6 +241,14 @@ def applied_action(
     return np.array(times), np.array(out)
 
 
+def _algorithm(run: Path) -> str | None:
+    """The learning algorithm a training run recorded (``None`` when it recorded none)."""
+    try:
+        return json.loads((Path(run) / "hyperparams.json").read_text()).get("algo")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
 def plot_reward(runs: Sequence[Path], target: Path) -> Path | None:
     """``reward.png`` from every run that has training logs; ``None`` if none has."""
     curves = [(run, load_training_curve(run)) for run in runs]
@@ -268,7 +276,10 @@ def plot_reward(runs: Sequence[Path], target: Path) -> Path | None:
         else:
             s, r = curve["per_env"][0]
             ax.plot(s, r, color=colour, lw=2, label=f"{_label(run)} (TensorBoard)")
-    if len(smoothed) >= 2:  # several seeds: their mean and spread on a common axis
+    algorithms = {_algorithm(run) for run, _ in curves}
+    # Several seeds of one algorithm: their mean and spread on a common axis (runs of
+    # different algorithms are not seeds of one experiment: no mean of them).
+    if len(smoothed) >= 2 and len(algorithms) == 1:
         lo = max(s[0] for s, _ in smoothed)
         hi = min(s[-1] for s, _ in smoothed)
         if hi > lo:

@@ -1,8 +1,8 @@
 """HeatedPlateFast-v0: the heated plate's training case, the same task on a cheaper flow.
 
-HeatedPlate-v0 costs about 52 s per 2.3 s episode on 2 cores, almost all of it the fluid
+HeatedPlate-v0 costs about 57 s per 2.3 s episode on 2 cores, almost all of it the fluid
 (12,013 cells, 230 windows of 0.01 s, two coupling iterations per window): an hour of
-training would be about 70 episodes. The training case keeps the task, the plate, the
+training would be about 60 episodes. The training case keeps the task, the plate, the
 time window, the observation, the action, the reward and the starts, and makes the flow
 cheaper with two measured edits (docs/training.md, "The heated plate"):
 
@@ -12,7 +12,7 @@ cheaper with two measured edits (docs/training.md, "The heated plate"):
   solve of each participant per window; the tutorial's partitioned-flow variant couples
   this plate explicitly too).
 
-An episode then costs about 2 s. Windows of 0.05 s would not make it cheaper (process
+An episode then costs about 3.5 s. Windows of 0.05 s would save little more (process
 start and settling dominate) but lag the heater's step by up to 1.8 K.
 
 A policy trained here is evaluated on HeatedPlate-v0 itself, with either plate: the
