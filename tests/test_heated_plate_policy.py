@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -64,19 +63,12 @@ def test_shipped_policy_beats_the_uncontrolled_plate_on_the_double(tmp_path: Pat
         assert c < u, f"held-out start {start}: {c:.3f} K controlled, {u:.3f} K uncontrolled"
 
 
-def _missing() -> list[str]:
-    missing = []
-    try:
-        import precice
+def _missing(env: str) -> str:
+    """What ``env`` lacks on this machine to run on real solvers, as the commands say it."""
+    from gymprecice.cli import doctor_report
+    from gymprecice_tutorials.requirements import missing_names, missing_requirements
 
-        if not hasattr(precice, "Participant"):
-            missing.append("pyprecice v3")
-    except ImportError:
-        missing.append("pyprecice (the preCICE library and its Python bindings)")
-    for program in ("buoyantPimpleFoam", "laplacianFoam", "blockMesh"):
-        if shutil.which(program) is None:
-            missing.append(f"OpenFOAM ({program})")
-    return missing
+    return missing_names(missing_requirements(doctor_report(), find_environment(env)))
 
 
 @pytest.mark.precice
@@ -84,9 +76,9 @@ def _missing() -> list[str]:
 @pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_shipped_policy_beats_the_uncontrolled_plate_on_the_real_stack(tmp_path: Path) -> None:
-    missing = _missing()
+    missing = _missing("heated-plate-fast")
     if missing:
-        pytest.skip("needs " + ", ".join(missing))
+        pytest.skip("needs " + missing)
     fast = {"episode_time": 1.0}
     uncontrolled = _errors(tmp_path, "baseline", "heated-plate-fast", fast, "--all-starts")
     controlled = _errors(

@@ -32,6 +32,7 @@ _NEEDS: dict[str, tuple[str, ...]] = {
     "perpendicular-flap-fast": ("pyprecice", "openfoam", "deal.ii", "elasticity"),
     # the OpenFOAM plate by default; solid="fenics" needs the FEniCS solver environment
     "heated-plate": ("pyprecice", "openfoam", "blockmesh"),
+    "heated-plate-fast": ("pyprecice", "openfoam", "blockmesh"),
 }
 
 
