@@ -51,6 +51,13 @@ def test_shipped_on_the_full_env_means_the_training_cases_policy() -> None:
     assert policy.metadata["env"]["name"] == "heated-plate-fast"
 
 
+def test_the_policy_list_gives_the_plates_evaluated_tracking_error(tmp_path: Path) -> None:
+    proc = _cli(tmp_path, "policies")
+    assert proc.returncode == 0, proc.stderr
+    (line,) = [x for x in proc.stdout.splitlines() if x.startswith("heated-plate-fast:")]
+    assert "evaluated mean tracking_error 0.2713 ± 0.093 over 3 episodes" in line, line
+
+
 @pytest.mark.timeout(300)
 def test_shipped_policy_beats_the_uncontrolled_plate_on_the_double(tmp_path: Path) -> None:
     kwargs = {"double": True}

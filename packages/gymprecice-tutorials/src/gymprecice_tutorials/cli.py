@@ -630,7 +630,8 @@ def _policy_parsers(sub: Any) -> None:
         "policies",
         help="list the trained policies shipped with the package",
         description="One line per shipped policy: its training env, steps, action bound "
-        "and evaluated mean Cd. Evaluate one with `gymprecice evaluate ENV --policy NAME`.",
+        "and evaluated mean Cd (or the env's objective). Evaluate one with `gymprecice "
+        "evaluate ENV --policy NAME`.",
     )
     p.set_defaults(func=_policies("list"))
 

@@ -735,6 +735,14 @@ def ship_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def _objective(env_name: str) -> str | None:
+    """The per-action metric an env is judged on (``None``: unknown env or none)."""
+    try:
+        return find_environment(env_name).objective
+    except KeyError:
+        return None
+
+
 def list_command(args: argparse.Namespace) -> int:
     """``gymprecice policies``: one line per shipped policy."""
     policies = shipped_policies()
@@ -746,7 +754,17 @@ def list_command(args: argparse.Namespace) -> int:
             f"{name}: trained on {meta['env']['name']} for {meta['training']['timesteps']:,} "
             f"steps, {meta['env_kwargs']}"
         )
-        cd = ((meta.get("evaluation") or {}).get("over_episodes") or {}).get("mean_Cd")
+        over = (meta.get("evaluation") or {}).get("over_episodes") or {}
+        cd = over.get("mean_Cd")
+        objective = _objective(meta["env"]["name"])
+        if not cd and objective and over.get(f"mean_{objective}"):
+            # an env judged on another metric than drag (the flap, the heated plate)
+            value = over[f"mean_{objective}"]
+            label = objective if objective.startswith("mean_") else f"mean {objective}"
+            line += (
+                f"; evaluated {label} {value['mean']:.4g} ± {value['std']:.2g} "
+                f"over {value['n']} episodes"
+            )
         if cd:
             line += f"; evaluated mean Cd {cd['mean']:.4f}"
             change = (meta["evaluation"].get("change_percent") or {}).get("mean_Cd")
