@@ -7,7 +7,7 @@ time window, the observation, the action, the reward and the starts, and makes t
 cheaper with two measured edits (docs/training.md, "The heated plate"):
 
 * the fluid mesh with a quarter of the cells in each direction of each block (12,013 ->
-  825 cells; the plate's interface keeps 41 faces);
+  825 cells; the plate's interface has 41 faces instead of 161);
 * serial-explicit Fluid-Solid coupling instead of serial-implicit with Aitken (one
   solve of each participant per window; the tutorial's partitioned-flow variant couples
   this plate explicitly too).
@@ -17,7 +17,8 @@ start and settling dominate) but lag the heater's step by up to 1.8 K.
 
 A policy trained here is evaluated on HeatedPlate-v0 itself, with either plate: the
 interface temperature of the training case follows the full case's within
-:data:`AGREEMENT_K` over an uncontrolled episode (measured, docs/training.md). The plate is
+:data:`AGREEMENT_K` over an episode, uncontrolled or with a heater step (measured,
+``benchmarks/bench_heated_plate_training_case.py``). The plate is
 OpenFOAM's laplacianFoam; the FEniCS plate is for HeatedPlate-v0.
 """
 
@@ -30,7 +31,7 @@ from typing import Any
 
 from gymprecice_tutorials.heated_plate.environment import HeatedPlateEnv, case_files
 
-__all__ = ["FAST_CELLS", "FAST_WINDOW", "HeatedPlateFastEnv", "fast_case_files"]
+__all__ = ["AGREEMENT_K", "FAST_CELLS", "FAST_WINDOW", "HeatedPlateFastEnv", "fast_case_files"]
 
 #: the training case's fluid blocks (cells along x and y of the three blocks)
 FAST_CELLS = ((21, 11), (41, 11), (13, 11))
