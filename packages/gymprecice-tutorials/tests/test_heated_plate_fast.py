@@ -1,4 +1,4 @@
-"""HeatedPlate-v0 and its training case, without solvers: case files, starts, the double.
+"""HeatedPlateFast-v0, the heated plate's training case, without solvers: files, starts.
 
 The real-stack episodes are in ``test_heated_plate_real.py``; here the training case's
 edits are checked on its files and the env's start handling on the lumped-plate double.
