@@ -144,8 +144,8 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "heated-plate-fast",
             "gymprecice/HeatedPlateFast-v0",
             "gymprecice_tutorials.heated_plate.fast:HeatedPlateFastEnv",
-            "the heated plate's training case: a coarser fluid, 0.05 s windows, explicit "
-            "coupling (the task and starts of heated-plate)",
+            "the heated plate's training case: a coarser fluid and explicit coupling, "
+            "3.5 s an episode (the task and starts of heated-plate)",
             double=False,
             recipe=False,
             open_loop_frequency=0.5,

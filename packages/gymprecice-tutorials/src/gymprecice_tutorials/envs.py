@@ -31,6 +31,7 @@ __all__ = [
     "EPISODE_KEYWORDS",
     "EpisodeMetrics",
     "find_model",
+    "load_normalizer",
     "load_policy",
     "make_env",
     "make_env_checked",
@@ -190,6 +191,19 @@ def vecnormalize_path(model: Path) -> Path:
     if match:
         return model.with_name(f"{match['prefix']}_vecnormalize_{match['steps']}_steps.pkl")
     return model.with_name(f"{model.stem}_vecnormalize.pkl")
+
+
+def load_normalizer(model_path: Path) -> Any:
+    """The frozen ``VecNormalize`` statistics saved with a model (``None`` if none were)."""
+    import pickle
+
+    path = vecnormalize_path(model_path)
+    if not path.is_file():
+        return None
+    with path.open("rb") as handle:
+        stats = pickle.load(handle)
+    stats.training = False
+    return stats
 
 
 def find_model(path: Path) -> tuple[Path, str | None]:

@@ -55,7 +55,12 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice_tutorials.environments import TutorialEnv, find_environment
-from gymprecice_tutorials.envs import load_model, make_env_checked, vecnormalize_path
+from gymprecice_tutorials.envs import (
+    load_model,
+    load_normalizer,
+    make_env_checked,
+    vecnormalize_path,
+)
 from gymprecice_tutorials.feedback import FeedbackController
 from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
 from gymprecice_tutorials.requirements import require_solvers
@@ -402,7 +407,7 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
             except PolicyError as exc:
                 print(f"gymprecice evaluate: {exc}", file=sys.stderr)
                 return 2
-            normalizer = _normalizer(model_path)
+            normalizer = load_normalizer(model_path)
             deterministic = not args.stochastic
 
             def controller(obs: Any, t: float) -> Any:
@@ -474,16 +479,3 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
     )
     print(_report(command, summary, out))
     return 0
-
-
-def _normalizer(model_path: Path) -> Any:
-    """The frozen ``VecNormalize`` statistics saved with a model (``None`` if none were)."""
-    import pickle
-
-    path = vecnormalize_path(model_path)
-    if not path.is_file():
-        return None
-    with path.open("rb") as handle:
-        stats = pickle.load(handle)
-    stats.training = False
-    return stats

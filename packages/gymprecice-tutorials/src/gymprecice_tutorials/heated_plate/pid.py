@@ -127,19 +127,13 @@ class PolicyController:
     deterministic action mapped from ``[-1, 1]`` onto the heater's range."""
 
     def __init__(self, spec: str, env: str = "heated-plate") -> None:
-        from gymprecice_tutorials.envs import find_model, load_model, vecnormalize_path
+        from gymprecice_tutorials.envs import find_model, load_model, load_normalizer
         from gymprecice_tutorials.shipped_policies import resolve_policy
 
         policy = resolve_policy(spec, env)
         path, _ = find_model(Path(policy.model))
         self.model = load_model(path)
-        self.stats = None
-        if vecnormalize_path(path).is_file():
-            import pickle
-
-            with vecnormalize_path(path).open("rb") as handle:
-                self.stats = pickle.load(handle)
-            self.stats.training = False
+        self.stats = load_normalizer(path)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float32)
