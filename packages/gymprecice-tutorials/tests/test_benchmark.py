@@ -46,6 +46,9 @@ TINY = [
     "0,3",
     "--bootstrap-reps",
     "200",
+    # evaluations and baselines in two worker processes, as the docs' command runs them
+    "--workers",
+    "2",
 ]
 
 
@@ -125,11 +128,24 @@ def test_intervals_contain_their_estimate_and_the_tables_agree(bench) -> None:
             scores = np.asarray(stats["scores"])
             assert stats["mean"]["value"] == pytest.approx(scores.mean())
             assert stats["iqm"]["value"] == pytest.approx(float(iqm(scores.reshape(-1))))
-            for s in ("mean", "iqm"):
+            assert stats["median"]["value"] == pytest.approx(float(np.median(scores)))
+            for s in ("mean", "median", "iqm"):
                 assert stats[s]["low"] <= stats[s]["value"] <= stats[s]["high"]
                 assert float(rows[c["label"]][f"{metric}_{s}"]) == pytest.approx(stats[s]["value"])
         assert f"| {c['label']} | {c['kind']} | {c['runs']} |" in markdown
     assert float(rows["PPO"]["mean_Cd_iqm"]) > 0  # the cylinders' mean Cd, beside the objective
+    # the fraction of the drag floor that every controller reaches, from the same drag
+    floor = benchmark.find_environment("jet-cylinder-fast").drag_floor
+    for c in results["controllers"]:
+        fraction, cd = c["metrics"]["floor_fraction"], c["metrics"]["mean_Cd"]
+        assert np.asarray(fraction["scores"]) == pytest.approx(
+            (floor.uncontrolled_cd - np.asarray(cd["scores"]))
+            / (floor.uncontrolled_cd - floor.floor_cd)
+        )
+    assert (
+        "## floor_fraction" in markdown
+        and "| controller | kind | runs | mean | median | iqm |" in markdown
+    )
 
 
 def test_figures_are_written(bench) -> None:
@@ -382,3 +398,25 @@ def test_evaluations_npz_survives_a_resume(tmp_path) -> None:
     assert callback.evaluations_timesteps == [40, 80]
     assert callback.evaluations_results == [[1.0, 2.0], [3.0, 4.0]]
     assert callback.evaluations_length == [[5, 5], [5, 5]]
+
+
+@pytest.mark.timeout(300)
+def test_commands_failing_in_worker_processes_are_all_reported_not_waited_for(
+    tmp_path, capsys
+) -> None:
+    missing = [
+        (
+            [
+                *("evaluate", "jet-cylinder-fast", "--double"),
+                *("--policy", str(tmp_path / f"no-{k}"), "--out", str(tmp_path / f"eval-{k}")),
+            ],
+            f"evaluating seed {k}",
+        )
+        for k in range(3)
+    ]
+    with pytest.raises(BenchmarkError) as exc:
+        benchmark._run_commands(missing, 2)
+    assert exc.value.code == 1
+    message = capsys.readouterr().err
+    assert all(f"evaluating seed {k}: exit status 1" in message for k in range(3))
+    assert "run the same command again" in message

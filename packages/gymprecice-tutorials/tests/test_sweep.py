@@ -100,3 +100,78 @@ def test_best_takes_the_lowest_mean_of_a_kind() -> None:
     ]
     assert best(results, "constant").label == "b"
     assert best(results, "uncontrolled") is None
+
+
+@pytest.mark.timeout(300)
+def test_two_workers_give_the_one_worker_table_and_a_rerun_keeps_finished_controllers(
+    tmp_path: Path,
+) -> None:
+    grid = ["jet-cylinder-fast", "--double", "--episode-time", "0.1", "--constants", "2"]
+    grid += ["--amplitudes", "1", "--frequencies", "3", "--episodes", "2"]
+    grid += ["--feedback-gains=-1,1"]
+    one = _cli(tmp_path, *grid, "--out", "one")
+    two = _cli(tmp_path, *grid, "--workers", "2", "--out", "two")
+    assert one.returncode == 0, one.stdout + one.stderr
+    assert two.returncode == 0, two.stdout + two.stderr
+    assert "6 controller(s) x 2 held-out start(s) on 2 worker(s)" in two.stdout
+    tables = [json.loads((tmp_path / d / "sweep.json").read_text()) for d in ("one", "two")]
+    assert tables[0]["controllers"] == tables[1]["controllers"]
+    # each worker ran in its own env directory
+    assert {p.name for p in (tmp_path / "two/envs").iterdir()} >= {"env_0", "env_1"}
+
+    # a sweep cut short: one controller never finished; the rerun runs only that one
+    unfinished = tmp_path / "two" / tables[1]["controllers"][3]["label"] / "summary.json"
+    unfinished.unlink()
+    again = _cli(tmp_path, *grid, "--workers", "2", "--out", "two")
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert "5 of 6 controllers were finished by an earlier run of this sweep: kept" in again.stdout
+    assert "1 controller(s) x 2 held-out start(s) on 1 worker(s)" in again.stdout
+    assert json.loads((tmp_path / "two/sweep.json").read_text()) == tables[1]
+
+    # other rollouts (another episode length) keep nothing
+    other = _cli(tmp_path, *grid[:3], "0.15", *grid[4:], "--out", "two")
+    assert other.returncode == 0, other.stdout + other.stderr
+    assert "kept" not in other.stdout
+
+
+@pytest.mark.timeout(300)
+def test_sigterm_stops_every_worker_of_a_parallel_sweep_and_its_solvers(tmp_path: Path) -> None:
+    import os
+    import signal
+    import time
+
+    proc = subprocess.Popen(
+        [
+            *(sys.executable, "-m", "gymprecice", "sweep", "jet-cylinder-fast", "--double"),
+            *("--episode-time", "50", "--constants", "2", "--episodes", "2", "--workers", "2"),
+            *("--amplitudes", "1", "--frequencies", "3", "--out", "sweep"),
+        ],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,  # its own process group: what is left of it can be found
+    )
+    try:
+        deadline = time.monotonic() + 120
+        # both workers running an episode: each has its env's directory
+        while not all((tmp_path / "sweep/envs" / f"env_{w}").is_dir() for w in (0, 1)):
+            assert proc.poll() is None, proc.communicate()[0]
+            assert time.monotonic() < deadline, "the workers never started"
+            time.sleep(0.5)
+        time.sleep(2)
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=60)
+        deadline = time.monotonic() + 30
+        while True:  # every process of the group (workers, fake solvers) gone
+            try:
+                os.killpg(proc.pid, 0)
+            except ProcessLookupError:
+                break
+            assert time.monotonic() < deadline, "a worker or solver outlived the sweep"
+            time.sleep(0.5)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode != 0
+    assert not (tmp_path / "sweep/sweep.json").exists()

@@ -59,7 +59,7 @@ __all__ = [
 
 SETTINGS_NAME = "benchmark.json"
 #: the statistics reported for every metric
-STATISTICS = ("mean", "iqm")
+STATISTICS = ("mean", "median", "iqm")
 
 
 class BenchmarkError(SystemExit):
@@ -342,10 +342,67 @@ def _evaluated(run: Path, model: Path) -> bool:
 
 
 def _run_command(argv: list[str], what: str) -> None:
-    ns = _parse(argv)
-    status = int(ns.func(ns) or 0)
+    status = _command_status(argv)
     if status:
         raise BenchmarkError(f"{what} failed (exit status {status})", 1)
+
+
+def _command_status(argv: list[str]) -> int:
+    """The exit status of ``gymprecice ARGV`` run in this process (module-level, so that
+    a worker process can run it)."""
+    ns = _parse(argv)
+    return int(ns.func(ns) or 0)
+
+
+def _worker_status(argv: list[str]) -> int:
+    """:func:`_command_status` in a pool's worker: a command's ``SystemExit`` (a refusal)
+    becomes its status, said on stderr, as a worker that exited would never answer."""
+    try:
+        return _command_status(argv)
+    except SystemExit as exc:
+        if isinstance(exc.code, int):
+            return exc.code
+        print(exc.code, file=sys.stderr, flush=True)
+        return 1
+
+
+def _run_commands(commands: list[tuple[list[str], str]], workers: int) -> None:
+    """Run ``gymprecice`` commands, ``workers`` at once in their own processes (one: here,
+    in turn). Every command runs even if one fails; then the failures are reported.
+    Ctrl-C, SIGTERM or SIGHUP stop every worker (and so its solvers) before returning."""
+    if workers <= 1 or len(commands) <= 1:
+        for argv, what in commands:
+            _run_command(argv, what)
+        return
+    import multiprocessing
+
+    from gymprecice_tutorials.callbacks import stop_signals_interrupt
+
+    context = multiprocessing.get_context("spawn")  # never fork a process holding threads
+    failures = []
+    with stop_signals_interrupt():
+        pool = context.Pool(min(workers, len(commands)), maxtasksperchild=1)
+        try:
+            pending = [(pool.apply_async(_worker_status, (argv,)), what) for argv, what in commands]
+            for result, what in pending:
+                try:
+                    status = result.get()
+                except Exception as exc:  # a crashed command: reported with the others
+                    failures.append(f"{what}: {type(exc).__name__}: {exc}")
+                else:
+                    if status:
+                        failures.append(f"{what}: exit status {status}")
+        except BaseException:
+            pool.terminate()  # SIGTERM to every worker; their solvers' supervisors follow
+            raise
+        else:
+            pool.close()
+        finally:
+            pool.join()
+    if failures:
+        raise BenchmarkError(
+            f"{'; '.join(failures)}; the finished ones are kept: run the same command again", 1
+        )
 
 
 # -- reading results -----------------------------------------------------------------------
@@ -363,9 +420,24 @@ def _scores(summary: dict[str, Any], env: TutorialEnv, starts: int) -> dict[str,
             1,
         )
     out = {"objective": [objective(env, e) for e in episodes]}
-    if all(e.get("series_mean_Cd") is not None for e in episodes):
-        out["mean_Cd"] = [float(e["series_mean_Cd"]) for e in episodes]
+    for metric, key in _SERIES_METRICS:
+        if all(e.get(key) is not None for e in episodes):
+            out[metric] = [float(e[key]) for e in episodes]
+    if all(e.get("mean_Cl") is not None for e in episodes):
+        # a steady side force lowers the drag below the shedding's without suppressing it
+        out["side_force"] = [abs(float(e["mean_Cl"])) for e in episodes]
     return out
+
+
+#: the per-start metrics besides the objective, from each episode's summary: the mean drag
+#: and mean |lift| over every solver step and, where the env knows its drag floor, the
+#: fraction of the floor's drop reached over the whole episode and once settled
+_SERIES_METRICS = (
+    ("mean_Cd", "series_mean_Cd"),
+    ("mean_abs_Cl", "series_mean_abs_Cl"),
+    ("floor_fraction", "floor_fraction"),
+    ("settled_floor_fraction", "settled_floor_fraction"),
+)
 
 
 def _controller(label: str, kind: str, runs: list[dict[str, list[float]]], reps: int) -> dict:
@@ -378,6 +450,18 @@ def _controller(label: str, kind: str, runs: list[dict[str, list[float]]], reps:
             **{s: estimate(matrix, s, reps=reps).as_dict() for s in STATISTICS},
         }
     return entry
+
+
+_METRIC_TITLES = {
+    "objective": "{objective} (lower is better)",
+    "mean_Cd": "mean drag coefficient over every solver step (lower is better)",
+    "floor_fraction": "fraction of the drag floor's drop, over the whole episode (higher is "
+    "better; 1: the steady symmetric flow's drag)",
+    "settled_floor_fraction": "fraction of the drag floor's drop once settled, after the "
+    "first seconds' transient (higher is better)",
+    "mean_abs_Cl": "mean |lift coefficient| over every solver step (the shedding's swing)",
+    "side_force": "|mean lift coefficient|: the steady side force (0 for a symmetric flow)",
+}
 
 
 def _fmt(e: dict[str, Any]) -> str:
@@ -422,23 +506,24 @@ def write_tables(
     lines = [
         f"# Benchmark: {env.env_id}",
         "",
-        f"Objective: {objective} (lower is better), from each of the {len(starts)} held-out "
-        f"start(s) ({'; '.join(starts)}). Mean and interquartile mean (IQM) over every seed x "
-        "start score, with a 95 % stratified-bootstrap interval over seeds "
-        "(strata: the starts); a controller run once (runs = 1) has no interval.",
-        "",
-        "| controller | kind | runs | "
-        + " | ".join(f"{m} {s}" for m in metrics for s in STATISTICS)
-        + " |",
-        "| --- | --- | --- | " + " | ".join("---" for _ in metrics for _ in STATISTICS) + " |",
+        f"From each of the {len(starts)} held-out start(s) ({'; '.join(starts)}): the mean, "
+        "median and interquartile mean (IQM) over every seed x start score, each with a "
+        "95 % stratified-bootstrap interval over seeds (strata: the starts); a controller "
+        "run once (runs = 1) has no interval.",
     ]
-    for c in controllers:
-        cells = [
-            _fmt(c["metrics"][m][s]) if m in c["metrics"] else ""
-            for m in metrics
-            for s in STATISTICS
+    for m in metrics:
+        lines += ["", f"## {m}: {_METRIC_TITLES.get(m, m).format(objective=objective)}", ""]
+        lines += [
+            "| controller | kind | runs | " + " | ".join(STATISTICS) + " |",
+            "| --- | --- | --- | " + " | ".join("---" for _ in STATISTICS) + " |",
         ]
-        lines.append(f"| {c['label']} | {c['kind']} | {c['runs']} | " + " | ".join(cells) + " |")
+        for c in controllers:
+            if m not in c["metrics"]:
+                continue
+            cells = [_fmt(c["metrics"][m][s]) for s in STATISTICS]
+            lines.append(
+                f"| {c['label']} | {c['kind']} | {c['runs']} | " + " | ".join(cells) + " |"
+            )
     (out / "results.md").write_text("\n".join(lines) + "\n")
 
 
@@ -513,20 +598,26 @@ def benchmark_command(args: argparse.Namespace) -> int:
                 continue
             _train_seed(train_argv(args, algo, seed, run, extra[algo]), run, label, args.retries)
 
-    # -- 2. evaluation from every held-out start
+    # -- 2. evaluation from every held-out start (each seed's final model)
     rollout_common = _common(args, args.eval_time)
-    controllers: list[dict[str, Any]] = []
+    pending: list[tuple[list[str], str]] = []
     for algo in algos:
-        runs = []
         for seed in range(args.seeds):
             train_dir = out / "train" / algo / f"seed_{seed}"
             run = out / "eval" / algo / f"seed_{seed}"
             if not _evaluated(run, train_dir / "model.zip"):
                 argv = ["evaluate", args.env, "--policy", str(train_dir), "--all-starts"]
-                _run_command(
-                    [*argv, "--out", str(run), *rollout_common], f"evaluating {algo} seed {seed}"
+                pending.append(
+                    ([*argv, "--out", str(run), *rollout_common], f"evaluating {algo} seed {seed}")
                 )
-            summary = json.loads((run / "summary.json").read_text())
+    _run_commands(pending, args.workers)
+    controllers: list[dict[str, Any]] = []
+    for algo in algos:
+        runs = []
+        for seed in range(args.seeds):
+            summary = json.loads(
+                (out / "eval" / algo / f"seed_{seed}" / "summary.json").read_text()
+            )
             runs.append(_scores(summary, env, len(starts)))
         controllers.append(_controller(algo.upper(), "learned", runs, args.bootstrap_reps))
 
@@ -548,6 +639,8 @@ def benchmark_command(args: argparse.Namespace) -> int:
                 f"--feedback-delays={args.feedback_delays}",
                 "--out",
                 str(sweep_dir),
+                "--workers",
+                str(args.workers),
                 *rollout_common,
             ]
             if args.feedback_signal:

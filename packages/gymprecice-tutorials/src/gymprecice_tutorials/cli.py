@@ -1,5 +1,5 @@
 """``gymprecice train | evaluate | baseline | open-loop | feedback | sweep | compare | benchmark
-| plot | ship-policy | policies``.
+| time-to-floor | plot | ship-policy | policies``.
 
 Added to the ``gymprecice`` command line by the tutorials plugin. Every command that runs
 an environment writes into one output directory (``--out``, default
@@ -12,7 +12,8 @@ case file hashes, seeds, command line), so the directory alone says how it was m
     gymprecice open-loop jet-cylinder --amplitude 0.5 --frequency 3
     gymprecice feedback jet-cylinder-fast --gain 2 --delay 3 --all-starts
     gymprecice sweep perpendicular-flap-fast            # uncontrolled, constants, sinusoids
-    gymprecice benchmark jet-cylinder-fast --seeds 5 --algo ppo,sac
+    gymprecice benchmark jet-cylinder-fast --seeds 5 --algo ppo,sac --workers 2
+    gymprecice time-to-floor runs/jet-cylinder-fast/train   # when it reached 95 % of the floor
     gymprecice compare runs/perpendicular-flap-fast/sweep runs/perpendicular-flap-fast/evaluate
     gymprecice plot runs/jet-cylinder/train runs/jet-cylinder/evaluate \\
         --baseline runs/jet-cylinder/baseline
@@ -145,6 +146,7 @@ def add_commands(sub: Any) -> None:
     _train_parser(sub)
     _rollout_parsers(sub)
     _benchmark_parser(sub)
+    _time_to_floor_parser(sub)
     _plot_parser(sub)
     _policy_parsers(sub)
 
@@ -410,6 +412,7 @@ def _rollout_parsers(sub: Any) -> None:
     p.add_argument(
         "--episodes", type=_positive_int, default=3, help="held-out starts per controller"
     )
+    _workers_option(p, "controllers run at once, each with its own env and core")
     p.set_defaults(func=_sweep)
 
     p = _parser(
@@ -425,6 +428,54 @@ def _rollout_parsers(sub: Any) -> None:
     p.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="output directories")
     p.add_argument("--out", type=Path, default=None, help="where to write (None: beside RUN)")
     p.set_defaults(func=_compare)
+
+
+def _time_to_floor_parser(sub: Any) -> None:
+    p = _parser(
+        sub,
+        "time-to-floor",
+        help="how soon training runs reached 90 / 95 % of the drag floor",
+        description="Evaluate each training run's checkpoints in order, deterministically "
+        "from every held-out start, until one reaches the highest --fractions of the drag "
+        "floor once settled; print the wall-clock from the training command's start to the "
+        "first checkpoint reaching each fraction and, over several runs (seeds), the median "
+        "with a 95 % bootstrap interval. Writes time_to_floor.json and .csv. See "
+        "docs/benchmark.md.",
+    )
+    p.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="training directories")
+    p.add_argument(
+        "--env",
+        default="jet-cylinder-fast",
+        help="the environment the runs trained on (one with a measured drag floor)",
+    )
+    p.add_argument("--fractions", default="0.9,0.95", help="fractions of the floor's drop")
+    p.add_argument(
+        "--eval-time",
+        type=float,
+        default=4.0,
+        help="simulated seconds per evaluation episode (the first 2 s are the transient)",
+    )
+    p.add_argument(
+        "--out", type=Path, default=None, help="output (None: <first RUN>/time-to-floor)"
+    )
+    p.add_argument("--double", action="store_true", help="evaluate on the test double (tests)")
+    _workers_option(p, "checkpoints evaluated at once, each on its own core")
+    p.set_defaults(func=_time_to_floor)
+
+
+def _time_to_floor(args: argparse.Namespace) -> int:
+    from gymprecice_tutorials.time_to_floor import time_to_floor_command
+
+    return time_to_floor_command(args)
+
+
+def _workers_option(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=1,
+        help=f"{what} (a solver runs on one core: at most the machine's cores)",
+    )
 
 
 def _benchmark_parser(sub: Any) -> None:
@@ -525,6 +576,7 @@ def _benchmark_parser(sub: Any) -> None:
         help="the info['metrics'] entry fed back (None: Cl for the cylinders)",
     )
     p.add_argument("--bootstrap-reps", type=_positive_int, default=2000, help="bootstrap resamples")
+    _workers_option(p, "evaluations and baseline rollouts run at once, each on its own core")
     p.add_argument("--fresh", action="store_true", help="start over, deleting the benchmark's runs")
     p.add_argument(
         "--ray",

@@ -9,7 +9,33 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["ENVIRONMENTS", "TutorialEnv", "find_environment"]
+__all__ = ["ENVIRONMENTS", "DragFloor", "TutorialEnv", "find_environment"]
+
+
+@dataclass(frozen=True)
+class DragFloor:
+    """Where a cylinder's drag can go by suppressing the shedding, as measured.
+
+    ``floor_cd`` is the drag of the case's steady, symmetric base flow
+    (:mod:`gymprecice_tutorials.base_flow`), ``uncontrolled_cd`` the developed shedding's
+    mean drag; a controller's *fraction of the floor* is how much of the drop between
+    them it takes, ``(uncontrolled_cd - Cd) / (uncontrolled_cd - floor_cd)``: 1 is the
+    whole drop. *Settled* drag leaves out the first ``settle_time`` seconds of an
+    episode, the transient out of the developed shedding.
+    """
+
+    uncontrolled_cd: float
+    floor_cd: float
+    settle_time: float = 2.0
+
+    def fraction(self, cd: float) -> float:
+        """The fraction of the floor's drop that a mean drag ``cd`` reaches."""
+        return (self.uncontrolled_cd - cd) / (self.uncontrolled_cd - self.floor_cd)
+
+
+#: the training case of the jet and rotating cylinders (3,580 cells): the uncontrolled mean
+#: over 10 s from a held-out start, the base flow of the mid-height cylinder (docs/training.md)
+FAST_CYLINDER_FLOOR = DragFloor(uncontrolled_cd=3.2195, floor_cd=2.9755)
 
 
 @dataclass(frozen=True)
@@ -49,6 +75,9 @@ class TutorialEnv:
     #: the shipped policy that ``--policy shipped`` means on this env (``None``: the one
     #: named after it); an env evaluated with the policy of its training case names it
     shipped_policy: str | None = None
+    #: the drag floor that ``evaluate`` and ``benchmark`` measure a cylinder controller
+    #: against (``None``: not measured for this env)
+    drag_floor: DragFloor | None = None
 
 
 ENVIRONMENTS: dict[str, TutorialEnv] = {
@@ -73,9 +102,11 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "gymprecice/JetCylinderFast-v0",
             "gymprecice_tutorials.fast_cases:JetCylinderFastEnv",
             "the jet cylinder's training case: coarse mesh, 1 s episodes from eight start "
-            "snapshots, Rabault's reward and jet bound (learns in about 2 hours on 2 cores)",
+            "snapshots, Rabault's reward and jet bound (PPO reaches 95 % of its drag floor "
+            "in minutes on 2 cores: docs/benchmark.md)",
             action_bound=2.5e-5,
             held_out_starts=True,
+            drag_floor=FAST_CYLINDER_FLOOR,
         ),
         TutorialEnv(
             "rotating-cylinder-fast",
@@ -85,6 +116,7 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             action_unit="rad/s",
             action_bound=2.0,
             held_out_starts=True,
+            drag_floor=FAST_CYLINDER_FLOOR,
         ),
         TutorialEnv(
             "quickstart",

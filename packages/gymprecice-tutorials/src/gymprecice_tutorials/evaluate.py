@@ -54,7 +54,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice_tutorials.environments import TutorialEnv, find_environment
+from gymprecice_tutorials.environments import DragFloor, TutorialEnv, find_environment
 from gymprecice_tutorials.envs import (
     load_model,
     load_normalizer,
@@ -132,12 +132,14 @@ def rollout(
     episodes: int = 1,
     seed: int = 0,
     every_start: bool = False,
+    drag_floor: DragFloor | None = None,
 ) -> dict[str, Any]:
     """Run ``episodes`` whole episodes and write history, coefficients and summary.
 
     ``every_start``: episode k runs the env's held-out start k (mod their number), the
     same for every controller and seed; otherwise the held-out split draws each
-    episode's start from its seed (``seed + k``).
+    episode's start from its seed (``seed + k``). ``drag_floor``: each episode's summary
+    also gives its settled mean drag and the fractions of the floor it reaches.
     """
     out.mkdir(parents=True, exist_ok=True)
     history_rows: list[dict[str, Any]] = []
@@ -150,7 +152,7 @@ def rollout(
         if hasattr(controller, "reset"):
             controller.reset()
         first_row, first_coefficient = len(history_rows), len(coefficient_rows)
-        t = float(info.get("time", 0.0))
+        t = t0 = float(info.get("time", 0.0))
         total, step = 0.0, 0
         while True:
             action = controller(obs, t)
@@ -195,6 +197,8 @@ def rollout(
             {f"mean_{name}": _nanmean([r.get(name, math.nan) for r in rows]) for name in metrics}
         )
         summary_row.update(series_means([r[2:] for r in coefficient_rows[first_coefficient:]]))
+        if drag_floor is not None:
+            summary_row.update(floor_metrics(coefficient_rows[first_coefficient:], t0, drag_floor))
         summaries.append(summary_row)
     _write_csv(out / "history.csv", history_rows)
     with (out / "coefficients.csv").open("w", newline="") as handle:
@@ -216,6 +220,22 @@ def series_means(coefficients: list[tuple[float, float]]) -> dict[str, float]:
         return {}
     cd, cl = np.asarray(coefficients, dtype=float).T
     return {"series_mean_Cd": float(cd.mean()), "series_mean_abs_Cl": float(np.abs(cl).mean())}
+
+
+def floor_metrics(
+    coefficients: list[tuple[int, float, float, float]], t0: float, floor: DragFloor
+) -> dict[str, float]:
+    """The settled mean drag (from ``t0 + settle_time`` on) and the fractions of the floor
+    that the whole episode's and the settled mean drag reach (none without coefficients)."""
+    if not coefficients:
+        return {}
+    _, time, cd, _ = np.asarray(coefficients, dtype=float).T
+    out = {"floor_fraction": floor.fraction(float(cd.mean()))}
+    settled = cd[time >= t0 + floor.settle_time - 1e-9]
+    if settled.size:
+        out["series_settled_mean_Cd"] = float(settled.mean())
+        out["settled_floor_fraction"] = floor.fraction(float(settled.mean()))
+    return out
 
 
 def over_episodes(episodes: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:
@@ -307,6 +327,8 @@ _REPORTED = {
         ("return", "return", False),
         ("series_mean_Cd", "mean Cd", True),
         ("series_mean_abs_Cl", "mean |Cl|", True),
+        ("floor_fraction", "fraction of the drag floor", False),
+        ("settled_floor_fraction", "settled", False),
     ),
     "actions": (
         ("return", "return", False),
@@ -461,6 +483,7 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
             episodes=episodes,
             seed=args.seed,
             every_start=bool(getattr(args, "all_starts", False)),
+            drag_floor=env_info.drag_floor,
         )
         if baseline is not None:
             summary["baseline"] = str(args.baseline.resolve())

@@ -16,6 +16,13 @@ writes, under ``--out``:
 
 The objective is the environment's (``TutorialEnv.objective``, lower is better; for the flap
 the mean tip-displacement magnitude), else the negated mean reward per action.
+
+Every controller's rollout is independent of the others, so ``--workers N`` spreads them
+over N processes, each with its own env (``<out>/envs/env_<k>``) and solver; the table is
+the same as from one worker. A controller's rollout counts as finished once its
+``summary.json`` is written: a sweep that was stopped, or whose worker failed, keeps those
+when run again with the same rollouts (env, its settings, starts, seed) and runs only the
+others.
 """
 
 from __future__ import annotations
@@ -41,7 +48,16 @@ from gymprecice_tutorials.manifest import write_manifest
 from gymprecice_tutorials.requirements import require_solvers
 from gymprecice_tutorials.train import build_env_kwargs, default_out
 
-__all__ = ["SweepResult", "constant_controller", "objective", "parse_grid", "sweep_command"]
+__all__ = [
+    "SweepJob",
+    "SweepResult",
+    "constant_controller",
+    "objective",
+    "parse_grid",
+    "run_jobs",
+    "sweep_command",
+    "sweep_jobs",
+]
 
 
 @dataclass
@@ -100,14 +116,151 @@ def objective(env_info: TutorialEnv, episode: dict[str, Any]) -> float:
     return -float(episode["return"]) / max(1, int(episode["steps"]))
 
 
-def _run(
-    env: gym.Env, controller: Any, out: Path, env_info: TutorialEnv, args: argparse.Namespace
-) -> list[float]:
-    # every controller meets the same starts: episode k runs held-out start k
-    summary = rollout(
-        env, controller, out, episodes=args.episodes, seed=args.seed, every_start=True
+@dataclass(frozen=True)
+class SweepJob:
+    """One controller to run: what ``sweep.csv`` records of it, and how to build it."""
+
+    label: str
+    kind: str  # "uncontrolled" | "constant" | "sinusoid" | "feedback"
+    settings: dict[str, float]
+    #: the constant's place in the action box (0: low, 1: high); the others ignore it
+    fraction: float = 0.5
+
+
+def sweep_jobs(
+    box: tuple[float, float],
+    constants: int,
+    centre: float,
+    amplitudes: Sequence[float],
+    frequencies: Sequence[float],
+    gains: Sequence[float],
+    delays: Sequence[int],
+    signal: str | None,
+) -> list[SweepJob]:
+    """Every controller of the sweep, in the order of its table (``box``: the action's
+    low and high on its first dimension, for the constants' labels)."""
+    low, high = box
+    jobs = [SweepJob("uncontrolled", "uncontrolled", {})]
+    for k in range(constants):
+        fraction = k / (constants - 1) if constants > 1 else 0.5
+        value = float(low + fraction * (high - low))
+        jobs.append(SweepJob(f"constant-{value:g}", "constant", {"action": value}, fraction))
+    for amplitude in amplitudes:
+        for frequency in frequencies:
+            jobs.append(
+                SweepJob(
+                    f"sine-c{centre:g}-a{amplitude:g}-f{frequency:g}",
+                    "sinusoid",
+                    {"centre": centre, "amplitude": amplitude, "frequency": frequency},
+                )
+            )
+    for gain in gains:
+        for delay in delays:
+            jobs.append(
+                SweepJob(
+                    f"feedback-{signal}-g{gain:g}-d{delay}",
+                    "feedback",
+                    {"gain": gain, "delay": delay},
+                )
+            )
+    return jobs
+
+
+def _controller_of(job: SweepJob, space: gym.Space, signal: str | None) -> Any:
+    if job.kind == "uncontrolled":
+        return zero_controller(space)
+    if job.kind == "constant":
+        return constant_controller(space, job.fraction)
+    if job.kind == "sinusoid":
+        s = job.settings
+        return sine_controller(space, s["amplitude"], s["frequency"], centre=s["centre"])
+    return FeedbackController(space, str(signal), job.settings["gain"], int(job.settings["delay"]))
+
+
+def run_jobs(spec: dict[str, Any], jobs: Sequence[SweepJob], index: int) -> None:
+    """Run ``jobs`` one after the other on env ``index`` (its own run directory), each
+    into ``<out>/<label>``. Module-level, so that a worker process can run its share."""
+    env_info = find_environment(spec["env"])
+    out = Path(spec["out"])
+    env: gym.Env | None = None
+    env_uncontrolled: bool | None = None
+    try:
+        for job in jobs:
+            uncontrolled = job.kind == "uncontrolled"
+            if env is None or env_uncontrolled != uncontrolled:
+                if env is not None:  # one env per index at a time: they share its directory
+                    env.close()
+                    env = None
+                kwargs = dict(spec["kwargs"])
+                if uncontrolled:  # where the action cannot say "uncontrolled", a kwarg does
+                    kwargs.update(dict(env_info.baseline_kwargs))
+                env = make_env_checked(env_info.name, env_info.env_id, index, kwargs, rescale=False)
+                env_uncontrolled = uncontrolled
+            controller = _controller_of(job, env.action_space, spec["signal"])
+            summary = rollout(
+                env,
+                controller,
+                out / job.label,
+                episodes=spec["episodes"],
+                seed=spec["seed"],
+                every_start=True,
+                drag_floor=env_info.drag_floor,
+            )
+            values = ", ".join(f"{objective(env_info, e):.4g}" for e in summary["episodes"])
+            print(f"gymprecice sweep: ran {job.label} ({values})", flush=True)
+    finally:
+        if env is not None:
+            env.close()
+
+
+def _finished(out: Path, job: SweepJob, episodes: int) -> dict[str, Any] | None:
+    """The summary of a controller that this sweep (or an earlier run of it) finished."""
+    try:
+        summary = json.loads((out / job.label / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return summary if len(summary.get("episodes", [])) == episodes else None
+
+
+def _same_rollouts(out: Path, identity: dict[str, Any]) -> bool:
+    """Whether ``out`` holds a sweep whose rollouts ran as this one's would."""
+    try:
+        saved = json.loads((out / "manifest.json").read_text()).get("settings", {})
+    except (OSError, ValueError):
+        return False
+    return all(
+        json.dumps(saved.get(k), sort_keys=True) == json.dumps(v, sort_keys=True)
+        for k, v in identity.items()
     )
-    return [objective(env_info, episode) for episode in summary["episodes"]]
+
+
+def _run_workers(spec: dict[str, Any], jobs: list[SweepJob], workers: int) -> None:
+    """Spread ``jobs`` round robin over ``workers`` processes, each with its own env and
+    run directory (one worker: in this process). A worker that fails leaves its
+    unfinished controllers to the caller's check; Ctrl-C stops every worker."""
+    import multiprocessing
+
+    if workers <= 1:
+        run_jobs(spec, jobs, 0)
+        return
+    context = multiprocessing.get_context("spawn")  # never fork a process holding threads
+    processes = [
+        context.Process(target=run_jobs, args=(spec, jobs[w::workers], w), name=f"sweep-{w}")
+        for w in range(workers)
+    ]
+    from gymprecice_tutorials.callbacks import stop_signals_interrupt
+
+    try:
+        with stop_signals_interrupt():  # SIGTERM / SIGHUP: stop the workers, as Ctrl-C does
+            for process in processes:
+                process.start()
+            for process in processes:
+                process.join()
+    finally:
+        for process in processes:
+            if process.is_alive():
+                process.terminate()
+                process.join(30)
 
 
 def sweep_command(args: argparse.Namespace) -> int:
@@ -141,83 +294,90 @@ def sweep_command(args: argparse.Namespace) -> int:
         status = require_solvers(env_info, "sweep", verbose=args.require_solvers)
         if status:
             return status
-    results: list[SweepResult] = []
-
-    def report(result: SweepResult) -> None:
-        results.append(result)
-        values = ", ".join(f"{v:.4g}" for v in result.objectives)
-        print(
-            f"gymprecice sweep: {result.label:<24} {result.mean:.4g} ± {result.std:.2g} ({values})"
+    workers = max(1, int(getattr(args, "workers", 1) or 1))
+    probe = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=False)
+    try:
+        space = probe.action_space
+    finally:
+        probe.close()
+    if not isinstance(space, gym.spaces.Box) or not np.all(np.isfinite(space.low)):
+        raise SystemExit(
+            f"gymprecice sweep: {env_info.name}'s action space {space} is not a bounded Box; "
+            "the sweep's constants and sinusoids need one"
         )
-
+    box = (float(np.ravel(space.low)[0]), float(np.ravel(space.high)[0]))
+    jobs = sweep_jobs(
+        box, args.constants, args.centre, amplitudes, frequencies, gains, delays, signal
+    )
+    # what every rollout depends on: a rerun that agrees keeps the controllers it finished
+    identity = {
+        "env_id": env_info.env_id,
+        "env_kwargs": kwargs,
+        "episodes": args.episodes,
+        "seed": args.seed,
+        "feedback_signal": signal if gains else None,
+    }
+    resumable = _same_rollouts(out, identity)
     write_manifest(
         out,
         command="sweep",
         case_dir=None,
         seeds={"seed": args.seed},
         settings={
-            "env_id": env_info.env_id,
-            "env_kwargs": kwargs,
-            "episodes": args.episodes,
+            **identity,
             "constants": args.constants,
             "centre": args.centre,
             "amplitudes": amplitudes,
             "frequencies": frequencies,
-            "feedback_signal": signal if gains else None,
             "feedback_gains": gains,
             "feedback_delays": delays if gains else [],
         },
     )
-    uncontrolled = make_env_checked(
-        env_info.name,
-        env_info.env_id,
-        0,
-        {**kwargs, **dict(env_info.baseline_kwargs)},
-        rescale=False,
-    )
-    try:
-        result = SweepResult("uncontrolled", "uncontrolled")
-        result.objectives = _run(
-            uncontrolled,
-            zero_controller(uncontrolled.action_space),
-            out / "uncontrolled",
-            env_info,
-            args,
+    todo = [j for j in jobs if not (resumable and _finished(out, j, args.episodes))]
+    if len(todo) < len(jobs):
+        print(
+            f"gymprecice sweep: {len(jobs) - len(todo)} of {len(jobs)} controllers were "
+            "finished by an earlier run of this sweep: kept",
+            flush=True,
         )
-        report(result)
-    finally:
-        uncontrolled.close()
-    env = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=False)
-    try:
-        space = env.action_space
-        for k in range(args.constants):
-            fraction = k / (args.constants - 1) if args.constants > 1 else 0.5
-            value = float(
-                np.asarray(space.low + fraction * (space.high - space.low)).reshape(-1)[0]
+    if todo:
+        for job in todo:  # a half-written rollout must not pass for a finished one
+            (out / job.label / "summary.json").unlink(missing_ok=True)
+        workers = min(workers, len(todo))
+        print(
+            f"gymprecice sweep: {len(todo)} controller(s) x {args.episodes} held-out start(s) "
+            f"on {workers} worker(s)",
+            flush=True,
+        )
+        spec = {
+            "env": env_info.name,
+            "kwargs": kwargs,
+            "out": str(out),
+            "episodes": args.episodes,
+            "seed": args.seed,
+            "signal": signal,
+        }
+        _run_workers(spec, todo, workers)
+        failed = [j.label for j in todo if not _finished(out, j, args.episodes)]
+        if failed:
+            print(
+                f"gymprecice sweep: {len(failed)} controller(s) did not finish "
+                f"({', '.join(failed)}); see the worker's output above. The finished ones "
+                "are kept: run the same command again to complete the sweep",
+                file=sys.stderr,
             )
-            label = f"constant-{value:g}"
-            result = SweepResult(label, "constant", {"action": value})
-            result.objectives = _run(
-                env, constant_controller(space, fraction), out / label, env_info, args
-            )
-            report(result)
-        for amplitude in amplitudes:
-            for frequency in frequencies:
-                label = f"sine-c{args.centre:g}-a{amplitude:g}-f{frequency:g}"
-                settings = {"centre": args.centre, "amplitude": amplitude, "frequency": frequency}
-                result = SweepResult(label, "sinusoid", settings)
-                controller = sine_controller(space, amplitude, frequency, centre=args.centre)
-                result.objectives = _run(env, controller, out / label, env_info, args)
-                report(result)
-        for gain in gains:
-            for delay in delays:
-                label = f"feedback-{signal}-g{gain:g}-d{delay}"
-                result = SweepResult(label, "feedback", {"gain": gain, "delay": delay})
-                law = FeedbackController(space, str(signal), gain, delay)
-                result.objectives = _run(env, law, out / label, env_info, args)
-                report(result)
-    finally:
-        env.close()
+            return 1
+    results: list[SweepResult] = []
+    for job in jobs:
+        summary = _finished(out, job, args.episodes) or {"episodes": []}
+        episodes = sorted(summary["episodes"], key=lambda e: int(e.get("start", e["episode"])))
+        result = SweepResult(job.label, job.kind, dict(job.settings))
+        result.objectives = [objective(env_info, e) for e in episodes]
+        results.append(result)
+        values = ", ".join(f"{v:.4g}" for v in result.objectives)
+        print(
+            f"gymprecice sweep: {result.label:<24} {result.mean:.4g} ± {result.std:.2g} ({values})"
+        )
     _write(out, results)
     return 0
 

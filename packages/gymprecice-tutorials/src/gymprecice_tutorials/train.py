@@ -29,6 +29,7 @@ import argparse
 import functools
 import json
 import math
+import os
 import shutil
 import sys
 import time
@@ -468,10 +469,23 @@ def _env_probe(env: TutorialEnv, kwargs: Mapping[str, Any]) -> Path | None:
         probe.close()
 
 
+def command_started_at() -> float:
+    """When the command started (epoch seconds): now, or the typed command's start that a
+    wrapper which sets up first passes in ``GYMPRECICE_STARTED_AT`` (scripts/train.sh),
+    so that "how long did it take" counts from what the user typed."""
+    given = os.environ.get("GYMPRECICE_STARTED_AT", "")
+    try:
+        started = float(given)
+    except ValueError:
+        return time.time()
+    return started if 0 < started <= time.time() else time.time()
+
+
 def train_command(args: argparse.Namespace) -> int:
     """``gymprecice train``."""
     from gymprecice_tutorials.manifest import solver_versions
 
+    started_at = command_started_at()
     try:
         env = find_environment(args.env)
     except KeyError as exc:
@@ -532,7 +546,13 @@ def train_command(args: argparse.Namespace) -> int:
     seeds = {"seed": args.seed, "env_seeds": [args.seed + i for i in range(args.n_envs)]}
 
     def record(result: Mapping[str, Any] | None) -> None:
-        segment = {"argv": list(sys.argv), "settings": settings, "seeds": seeds, "result": result}
+        segment = {
+            "argv": list(sys.argv),
+            "started_at": started_at,
+            "settings": settings,
+            "seeds": seeds,
+            "result": result,
+        }
         write_manifest(
             out,
             command="train",
