@@ -410,9 +410,10 @@ def _run_commands(commands: list[tuple[list[str], str]], workers: int) -> None:
 
 def _scores(summary: dict[str, Any], env: TutorialEnv, starts: int) -> dict[str, list[float]]:
     """Per held-out start (in index order) the objective and, if recorded, the mean Cd."""
+    from gymprecice_tutorials.evaluate import episodes_by_start
     from gymprecice_tutorials.sweep import objective
 
-    episodes = sorted(summary["episodes"], key=lambda e: int(e.get("start", e["episode"])))
+    episodes = episodes_by_start(summary)
     if len(episodes) != starts:
         raise BenchmarkError(
             f"an evaluation has {len(episodes)} episode(s) for {starts} held-out start(s); "

@@ -214,6 +214,11 @@ def rollout(
     return summary
 
 
+def episodes_by_start(summary: dict[str, Any]) -> list[dict[str, Any]]:
+    """A summary's episodes in held-out start order (episode order without starts)."""
+    return sorted(summary["episodes"], key=lambda e: int(e.get("start", e["episode"])))
+
+
 def series_means(coefficients: list[tuple[float, float]]) -> dict[str, float]:
     """Mean Cd and mean |Cl| over an episode's solver steps (none without coefficients)."""
     if not coefficients:

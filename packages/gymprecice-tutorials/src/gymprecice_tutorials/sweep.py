@@ -42,7 +42,12 @@ import numpy as np
 
 from gymprecice_tutorials.environments import TutorialEnv, find_environment
 from gymprecice_tutorials.envs import make_env_checked
-from gymprecice_tutorials.evaluate import rollout, sine_controller, zero_controller
+from gymprecice_tutorials.evaluate import (
+    episodes_by_start,
+    rollout,
+    sine_controller,
+    zero_controller,
+)
 from gymprecice_tutorials.feedback import FeedbackController
 from gymprecice_tutorials.manifest import write_manifest
 from gymprecice_tutorials.requirements import require_solvers
@@ -370,7 +375,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     results: list[SweepResult] = []
     for job in jobs:
         summary = _finished(out, job, args.episodes) or {"episodes": []}
-        episodes = sorted(summary["episodes"], key=lambda e: int(e.get("start", e["episode"])))
+        episodes = episodes_by_start(summary)
         result = SweepResult(job.label, job.kind, dict(job.settings))
         result.objectives = [objective(env_info, e) for e in episodes]
         results.append(result)

@@ -29,13 +29,19 @@ import math
 import re
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from gymprecice_tutorials.environments import DragFloor, TutorialEnv, find_environment
+from gymprecice_tutorials.environments import (
+    ENVIRONMENTS,
+    DragFloor,
+    TutorialEnv,
+    find_environment,
+)
+from gymprecice_tutorials.evaluate import episodes_by_start
 
 __all__ = [
     "Checkpoint",
@@ -143,7 +149,7 @@ def _evaluation(
 
 def _settled(summary: dict[str, Any], floor: DragFloor) -> list[float]:
     """The settled fraction of the floor from each held-out start, in start order."""
-    episodes = sorted(summary["episodes"], key=lambda e: int(e.get("start", e["episode"])))
+    episodes = episodes_by_start(summary)
     values = [e.get("settled_floor_fraction") for e in episodes]
     if any(v is None for v in values):
         raise ValueError(
@@ -281,7 +287,7 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
         print(f"gymprecice time-to-floor: {exc.args[0]}", file=sys.stderr)
         return 2
     if env.drag_floor is None:
-        names = ", ".join(e for e, i in _environments().items() if i.drag_floor)
+        names = ", ".join(e for e, i in ENVIRONMENTS.items() if i.drag_floor)
         print(
             f"gymprecice time-to-floor: {env.name} has no measured drag floor; the envs "
             f"that have one: {names}",
@@ -349,7 +355,7 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
             "env": env.name,
             "fractions": fractions,
             "eval_time": args.eval_time,
-            "floor": _floor_settings(env),
+            "floor": asdict(env.drag_floor),
         },
     )
     if len(scans) > 1:
@@ -362,19 +368,3 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
             )
     print(f"gymprecice time-to-floor: wrote {out / 'time_to_floor.json'} and time_to_floor.csv")
     return 0
-
-
-def _floor_settings(env: TutorialEnv) -> dict[str, float]:
-    floor = env.drag_floor
-    assert floor is not None
-    return {
-        "uncontrolled_cd": floor.uncontrolled_cd,
-        "floor_cd": floor.floor_cd,
-        "settle_time": floor.settle_time,
-    }
-
-
-def _environments() -> dict[str, TutorialEnv]:
-    from gymprecice_tutorials.environments import ENVIRONMENTS
-
-    return ENVIRONMENTS
