@@ -10,8 +10,8 @@ got there within the recipe's training.
 Everything resumes: a seed already trained is kept, a seed cut short resumes from its
 newest checkpoint (its clock then includes the restart), an evaluation already made is
 reused. ``--from-benchmark DIR`` adds the seeds that a ``gymprecice benchmark`` run
-trained (``DIR/train/ppo``), timed from each seed's own training start, so one benchmark
-serves both the table and this figure.
+trained (``DIR/train/<algo>``, every algorithm), timed from each seed's own training
+start, so one benchmark serves both the table and this figure.
 
 Run: ``python benchmarks/bench_time_to_floor.py --recipes ppo --seeds 5`` (needs preCICE
 and OpenFOAM with the adapter; a recipe's seed costs about a quarter of an hour of both
@@ -49,8 +49,13 @@ RECIPES: dict[str, tuple[str, list[str]]] = {
         ["--hyperparams", "scripts/ppo-fast.yml", "--timesteps", "4000", "--n-steps", "40"],
     ),
     "sac": (
-        "SAC, 256 x 256, one gradient step per action",
+        "SAC with SB3's settings, 256 x 256, one gradient step per batch of 2 actions",
         ["--algo", "sac", "--timesteps", "4000"],
+    ),
+    "sac-fast": (
+        "the benchmark's SAC: scripts/sac-fast.yml (update-to-data ratio 2, discount 0.98), "
+        "4,000 actions",
+        ["--algo", "sac", "--hyperparams", "scripts/sac-fast.yml", "--timesteps", "4000"],
     ),
 }
 COMMON = [
@@ -115,10 +120,14 @@ def main() -> None:
         parser.error(f"unknown recipe(s) {', '.join(unknown)}; choose from {', '.join(RECIPES)}")
     results: dict[str, dict] = {}
     if args.from_benchmark is not None:
-        runs = sorted((args.from_benchmark / "train" / "ppo").glob("seed_*"))
         settings = json.loads((args.from_benchmark / "benchmark.json").read_text())
-        label = f"benchmark: PPO, {settings['timesteps']:,} actions ({args.from_benchmark.name})"
-        results[label] = scan(runs, args.out / "from-benchmark", args.workers)
+        for algo in settings["algos"]:
+            runs = sorted((args.from_benchmark / "train" / algo).glob("seed_*"))
+            label = (
+                f"benchmark: {algo.upper()}, {settings['timesteps']:,} actions "
+                f"({args.from_benchmark.name})"
+            )
+            results[label] = scan(runs, args.out / "from-benchmark" / algo, args.workers)
     for recipe in names:
         runs = [args.out / recipe / f"seed_{seed}" for seed in range(args.seeds)]
         for seed, run in enumerate(runs):

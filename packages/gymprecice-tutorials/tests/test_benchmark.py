@@ -172,6 +172,47 @@ def test_a_resumed_benchmark_with_other_settings_is_refused(bench, monkeypatch, 
     assert "cannot resume" in err and "timesteps is 32 now but 16" in err and "--fresh" in err
 
 
+def _with_algorithms(algos: str, ppo_args: str, sac_args: str) -> list[str]:
+    argv = [*TINY]
+    argv[argv.index("--algo") + 1] = algos
+    argv[argv.index("--train-args") + 1] = f"ppo: {ppo_args}"
+    return [*argv, "--train-args", f"sac: {sac_args}"]
+
+
+def test_an_algorithm_added_to_a_benchmark_trains_alone_and_joins_the_table(
+    bench, tmp_path, monkeypatch, capsys
+) -> None:
+    import shutil
+
+    out = tmp_path / "run"
+    shutil.copytree(bench["out"], out)
+    real, trained = benchmark._train_once, []
+
+    def recording(argv: list[str]) -> int:
+        trained.append((argv[argv.index("--algo") + 1], argv[argv.index("--seed") + 1]))
+        return real(argv)
+
+    monkeypatch.setattr(benchmark, "_train_once", recording)
+    ppo_args = TINY[TINY.index("--train-args") + 1]
+    sac_args = "--net 8,8 --vec-env dummy"
+    added = _with_algorithms("ppo,sac", ppo_args, sac_args)
+    assert main(["benchmark", *added, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "adding SAC; what PPO finished is kept" in said
+    assert trained == [("sac", "0"), ("sac", "1")]  # PPO's seeds are not trained again
+    labels = [c["label"] for c in json.loads((out / "results.json").read_text())["controllers"]]
+    assert labels[:2] == ["PPO", "SAC"] and labels[2] == "uncontrolled"
+    assert json.loads((out / "benchmark.json").read_text())["algos"] == ["ppo", "sac"]
+
+    # the algorithm already there may not change on the way
+    changed = _with_algorithms("ppo,sac", ppo_args.replace("8,8", "16,16"), sac_args)
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", *changed, "--out", str(out)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "cannot resume" in err and "train_args is" in err and "16,16" in err
+
+
 def test_a_seed_that_keeps_failing_stops_the_benchmark_without_a_table(
     tmp_path, monkeypatch, capsys
 ) -> None:

@@ -9,7 +9,10 @@ docs/benchmark.md on one environment, reusing the other commands for each piece:
    a seed already trained to ``--timesteps`` is kept, one cut short resumes from its
    newest checkpoint; a seed whose training fails is reported and re-run (``--retries``),
    and if it still fails the benchmark stops without a table: a seed is never silently
-   dropped from the aggregate;
+   dropped from the aggregate. With ``--ray auto|ADDRESS`` every seed trains at once, each
+   from its own process here (its learner) with its envs as Ray actors on the cluster
+   (``gymprecice train --ray``, docs/cluster.md); the evaluations below stay on this
+   machine, ``--workers`` at once;
 2. **evaluate** every policy deterministically from every held-out start
    (``gymprecice evaluate --all-starts`` into ``<out>/eval/<algo>/seed_<k>``);
 3. **baselines** on the same starts (``gymprecice sweep`` into ``<out>/baselines``): the
@@ -36,7 +39,7 @@ import json
 import shlex
 import shutil
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -257,7 +260,7 @@ def _lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
             shutil.rmtree(out / name, ignore_errors=True)
         path.unlink(missing_ok=True)
     if path.is_file():
-        saved = json.loads(path.read_text())
+        saved = _with_added_algorithms(json.loads(path.read_text()), settings)
         changed = [
             f"{key} is {json.dumps(settings.get(key))} now but {json.dumps(saved.get(key))} "
             f"in the benchmark being resumed"
@@ -272,6 +275,24 @@ def _lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
             )
     out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(settings, indent=2) + "\n")
+
+
+def _with_added_algorithms(saved: dict[str, Any], settings: dict[str, Any]) -> dict[str, Any]:
+    """``saved`` as if it had named the algorithms that ``settings`` adds, with their
+    training flags: adding an algorithm to a benchmark keeps every finished seed,
+    evaluation and baseline of the others, whose settings must still match."""
+    algos, old = settings.get("algos") or [], saved.get("algos") or []
+    added = [a for a in algos if a not in old]
+    if not added or algos[: len(old)] != old:
+        return saved
+    train_args = {**saved.get("train_args", {})}
+    train_args.update({a: settings.get("train_args", {}).get(a) for a in added})
+    print(
+        f"gymprecice benchmark: adding {', '.join(a.upper() for a in added)}; what "
+        f"{', '.join(a.upper() for a in old)} finished is kept",
+        flush=True,
+    )
+    return {**saved, "algos": algos, "train_args": train_args}
 
 
 def _trained(run: Path, timesteps: int) -> bool:
@@ -366,6 +387,19 @@ def _worker_status(argv: list[str]) -> int:
         return 1
 
 
+def _worker_train_seed(argv: list[str], run: str, label: str, retries: int) -> int:
+    """:func:`_train_seed` in a pool's worker: its exit status (0: trained), the reason
+    already said on stderr, as a worker that raised would never answer."""
+    try:
+        _train_seed(argv, Path(run), label, retries)
+    except SystemExit as exc:
+        if isinstance(exc.code, int):
+            return exc.code
+        print(exc.code, file=sys.stderr, flush=True)
+        return 1
+    return 0
+
+
 def _run_commands(commands: list[tuple[list[str], str]], workers: int) -> None:
     """Run ``gymprecice`` commands, ``workers`` at once in their own processes (one: here,
     in turn). Every command runs even if one fails; then the failures are reported.
@@ -374,6 +408,14 @@ def _run_commands(commands: list[tuple[list[str], str]], workers: int) -> None:
         for argv, what in commands:
             _run_command(argv, what)
         return
+    _run_in_pool(_worker_status, [((argv,), what) for argv, what in commands], workers)
+
+
+def _run_in_pool(
+    task: Callable[..., int], jobs: list[tuple[tuple[Any, ...], str]], workers: int
+) -> None:
+    """Run ``task(*args)`` for every job, ``workers`` at once in spawned processes; a
+    non-zero status or a crash is a failure, reported with the others once all ran."""
     import multiprocessing
 
     from gymprecice_tutorials.callbacks import stop_signals_interrupt
@@ -381,9 +423,9 @@ def _run_commands(commands: list[tuple[list[str], str]], workers: int) -> None:
     context = multiprocessing.get_context("spawn")  # never fork a process holding threads
     failures = []
     with stop_signals_interrupt():
-        pool = context.Pool(min(workers, len(commands)), maxtasksperchild=1)
+        pool = context.Pool(min(workers, len(jobs)), maxtasksperchild=1)
         try:
-            pending = [(pool.apply_async(_worker_status, (argv,)), what) for argv, what in commands]
+            pending = [(pool.apply_async(task, args), what) for args, what in jobs]
             for result, what in pending:
                 try:
                     status = result.get()
@@ -403,6 +445,38 @@ def _run_commands(commands: list[tuple[list[str], str]], workers: int) -> None:
         raise BenchmarkError(
             f"{'; '.join(failures)}; the finished ones are kept: run the same command again", 1
         )
+
+
+def _check_ray(address: str) -> None:
+    """Refuse ``--ray`` before anything trains when Ray is missing or no cluster answers."""
+    try:
+        import ray
+    except ImportError:
+        raise BenchmarkError(
+            "--ray needs Ray on this machine and every node: pip install "
+            "'gymprecice-core[ray]' (see docs/cluster.md)"
+        ) from None
+    host, _, port = address.rpartition(":")
+    if host and port.isdigit():  # a head's address: ray.init would retry it for minutes
+        import socket
+
+        try:
+            socket.create_connection((host, int(port)), timeout=5).close()
+        except OSError as exc:
+            raise BenchmarkError(
+                f"--ray {address}: no Ray cluster answers there ({exc.strerror or exc}); start "
+                "one (ray start --head, see docs/cluster.md) or pass its head's address"
+            ) from None
+    try:
+        ray.init(address=address, log_to_driver=False)
+    except (ConnectionError, RuntimeError, ValueError) as exc:
+        raise BenchmarkError(
+            f"--ray {address}: no Ray cluster answers there ({exc}); start one (ray start "
+            "--head, see docs/cluster.md) or pass its head's address"
+        ) from None
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
 
 
 # -- reading results -----------------------------------------------------------------------
@@ -541,11 +615,6 @@ def benchmark_command(args: argparse.Namespace) -> int:
         env = find_environment(args.env)
     except KeyError as exc:
         raise BenchmarkError(exc.args[0]) from None
-    if args.ray:
-        raise BenchmarkError(
-            "--ray is not implemented yet: run the seeds on one machine (or one benchmark "
-            "per node with its own --out); see docs/benchmark.md"
-        )
     algos = parse_algorithms(args.algo)
     extra = parse_train_args(args.train_args, algos)
     out = (args.out or default_out(env, "benchmark")).resolve()
@@ -579,6 +648,8 @@ def benchmark_command(args: argparse.Namespace) -> int:
     if not args.no_baselines:
         _check_baselines_fit(space)
         _check_grids(args, env)
+    if args.ray:
+        _check_ray(args.ray)
     settings = _settings(args, env, algos, extra)
     settings["held_out_starts"] = list(starts)
     _lock_settings(out, settings, args.fresh)
@@ -589,7 +660,8 @@ def benchmark_command(args: argparse.Namespace) -> int:
         flush=True,
     )
 
-    # -- 1. training, every seed
+    # -- 1. training, every seed (with --ray: every seed at once, its envs on the cluster)
+    jobs: list[tuple[tuple[Any, ...], str]] = []
     for algo in algos:
         for seed in range(args.seeds):
             run = out / "train" / algo / f"seed_{seed}"
@@ -597,7 +669,20 @@ def benchmark_command(args: argparse.Namespace) -> int:
             if _trained(run, args.timesteps):
                 print(f"gymprecice benchmark: {label}: trained already, kept", flush=True)
                 continue
-            _train_seed(train_argv(args, algo, seed, run, extra[algo]), run, label, args.retries)
+            argv = train_argv(args, algo, seed, run, extra[algo])
+            if args.ray:
+                argv += ["--ray", args.ray]
+            jobs.append(((argv, str(run), label, args.retries), label))
+    if args.ray and len(jobs) > 1:
+        print(
+            f"gymprecice benchmark: training {len(jobs)} seed(s) at once, their envs as Ray "
+            f"actors on the cluster at {args.ray}",
+            flush=True,
+        )
+        _run_in_pool(_worker_train_seed, jobs, len(jobs))
+    else:
+        for (argv, run, label, retries), _ in jobs:
+            _train_seed(argv, Path(run), label, retries)
 
     # -- 2. evaluation from every held-out start (each seed's final model)
     rollout_common = _common(args, args.eval_time)

@@ -582,7 +582,8 @@ def _benchmark_parser(sub: Any) -> None:
         "--ray",
         metavar="auto|ADDRESS",
         default=None,
-        help="not implemented yet (refused): spread seeds over a Ray cluster",
+        help="train every seed at once, its envs as Ray actors on this Ray cluster (auto: "
+        "the one this machine joined); needs gymprecice-core[ray], see docs/cluster.md",
     )
     p.set_defaults(func=_benchmark)
 
