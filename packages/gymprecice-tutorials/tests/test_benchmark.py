@@ -461,3 +461,59 @@ def test_commands_failing_in_worker_processes_are_all_reported_not_waited_for(
     message = capsys.readouterr().err
     assert all(f"evaluating seed {k}: exit status 1" in message for k in range(3))
     assert "run the same command again" in message
+
+
+# -- --ray: a real Ray cluster on this machine ------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def ray_cluster():
+    """A head with no CPU for envs and two worker nodes: every env actor lands on a worker."""
+    ray = pytest.importorskip("ray", reason="benchmark --ray needs gymprecice-core[ray]")
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(
+        initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False}
+    )
+    for _ in range(2):
+        cluster.add_node(num_cpus=2)
+    cluster.wait_for_nodes()
+    yield cluster
+    if ray.is_initialized():
+        ray.shutdown()
+    cluster.shutdown()
+
+
+@pytest.mark.timeout(600)
+def test_with_ray_every_seed_trains_at_once_with_its_envs_on_the_cluster(
+    ray_cluster, tmp_path, capsys, monkeypatch
+) -> None:
+    out, nodes = tmp_path / "bench", tmp_path / "nodes"
+    monkeypatch.setenv("GYMPRECICE_NODE_DIR", str(nodes))  # where the env actors work
+    address = ray_cluster.address
+    assert main(["benchmark", *TINY, "--no-baselines", "--ray", address, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert (
+        f"training 2 seed(s) at once, their envs as Ray actors on the cluster at {address}" in said
+    )
+    for seed in range(2):
+        assert (out / "train" / "ppo" / f"seed_{seed}" / "model.zip").is_file()
+        assert (out / "eval" / "ppo" / f"seed_{seed}" / "summary.json").is_file()
+    rows = json.loads((out / "results.json").read_text())["controllers"]
+    assert [c["label"] for c in rows] == ["PPO"]
+    # one env per seed, each an actor that worked in its node directory: on a worker node,
+    # as the head has no CPU to give
+    actors = sorted(p.name.split("-")[0] for p in (nodes / "gymprecice-ray").iterdir())
+    assert actors == ["env_0", "env_0"]
+
+
+def test_with_ray_a_cluster_that_does_not_answer_is_refused_before_training(
+    tmp_path, capsys
+) -> None:
+    pytest.importorskip("ray", reason="benchmark --ray needs gymprecice-core[ray]")
+    out = tmp_path / "bench"
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", *TINY, "--ray", "127.0.0.1:1", "--out", str(out)])
+    assert exc.value.code == 2
+    assert "--ray 127.0.0.1:1: no Ray cluster answers there" in capsys.readouterr().err
+    assert not (out / "train").exists()
