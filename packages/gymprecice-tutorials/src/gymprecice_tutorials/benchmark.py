@@ -260,7 +260,8 @@ def _lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
             shutil.rmtree(out / name, ignore_errors=True)
         path.unlink(missing_ok=True)
     if path.is_file():
-        saved = _with_added_algorithms(json.loads(path.read_text()), settings)
+        original = json.loads(path.read_text())
+        saved = _with_added_algorithms(original, settings)
         changed = [
             f"{key} is {json.dumps(settings.get(key))} now but {json.dumps(saved.get(key))} "
             f"in the benchmark being resumed"
@@ -272,6 +273,13 @@ def _lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
             raise BenchmarkError(
                 f"cannot resume {out} with other settings: {'; '.join(changed)}. Rerun with "
                 f"the settings in {path}, choose another --out, or add --fresh to start over"
+            )
+        if saved is not original:
+            added = [a for a in settings["algos"] if a not in original["algos"]]
+            print(
+                f"gymprecice benchmark: adding {', '.join(a.upper() for a in added)}; what "
+                f"{', '.join(a.upper() for a in original['algos'])} finished is kept",
+                flush=True,
             )
     out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(settings, indent=2) + "\n")
@@ -287,11 +295,6 @@ def _with_added_algorithms(saved: dict[str, Any], settings: dict[str, Any]) -> d
         return saved
     train_args = {**saved.get("train_args", {})}
     train_args.update({a: settings.get("train_args", {}).get(a) for a in added})
-    print(
-        f"gymprecice benchmark: adding {', '.join(a.upper() for a in added)}; what "
-        f"{', '.join(a.upper() for a in old)} finished is kept",
-        flush=True,
-    )
     return {**saved, "algos": algos, "train_args": train_args}
 
 
@@ -375,29 +378,27 @@ def _command_status(argv: list[str]) -> int:
     return int(ns.func(ns) or 0)
 
 
-def _worker_status(argv: list[str]) -> int:
-    """:func:`_command_status` in a pool's worker: a command's ``SystemExit`` (a refusal)
-    becomes its status, said on stderr, as a worker that exited would never answer."""
+def _exit_status(call: Callable[..., Any], *args: Any) -> int:
+    """``call(*args)`` in a pool's worker as an exit status: a ``SystemExit`` (a refusal,
+    a failed seed) becomes its status, its message said on stderr, as a worker that
+    raised would never answer."""
     try:
-        return _command_status(argv)
+        return int(call(*args) or 0)
     except SystemExit as exc:
         if isinstance(exc.code, int):
             return exc.code
         print(exc.code, file=sys.stderr, flush=True)
         return 1
+
+
+def _worker_status(argv: list[str]) -> int:
+    """:func:`_command_status` in a pool's worker."""
+    return _exit_status(_command_status, argv)
 
 
 def _worker_train_seed(argv: list[str], run: str, label: str, retries: int) -> int:
-    """:func:`_train_seed` in a pool's worker: its exit status (0: trained), the reason
-    already said on stderr, as a worker that raised would never answer."""
-    try:
-        _train_seed(argv, Path(run), label, retries)
-    except SystemExit as exc:
-        if isinstance(exc.code, int):
-            return exc.code
-        print(exc.code, file=sys.stderr, flush=True)
-        return 1
-    return 0
+    """:func:`_train_seed` in a pool's worker (0: trained)."""
+    return _exit_status(_train_seed, argv, Path(run), label, retries)
 
 
 def _run_commands(commands: list[tuple[list[str], str]], workers: int) -> None:
@@ -457,22 +458,17 @@ def _check_ray(address: str) -> None:
             "'gymprecice-core[ray]' (see docs/cluster.md)"
         ) from None
     host, _, port = address.rpartition(":")
-    if host and port.isdigit():  # a head's address: ray.init would retry it for minutes
-        import socket
-
-        try:
-            socket.create_connection((host, int(port)), timeout=5).close()
-        except OSError as exc:
-            raise BenchmarkError(
-                f"--ray {address}: no Ray cluster answers there ({exc.strerror or exc}); start "
-                "one (ray start --head, see docs/cluster.md) or pass its head's address"
-            ) from None
     try:
+        if host and port.isdigit():  # a head's address: ray.init would retry it for minutes
+            import socket
+
+            socket.create_connection((host, int(port)), timeout=5).close()
         ray.init(address=address, log_to_driver=False)
-    except (ConnectionError, RuntimeError, ValueError) as exc:
+    except (OSError, RuntimeError, ValueError) as exc:  # ConnectionError is an OSError
         raise BenchmarkError(
-            f"--ray {address}: no Ray cluster answers there ({exc}); start one (ray start "
-            "--head, see docs/cluster.md) or pass its head's address"
+            f"--ray {address}: no Ray cluster answers there "
+            f"({getattr(exc, 'strerror', None) or exc}); start one (ray start --head, see "
+            "docs/cluster.md) or pass its head's address"
         ) from None
     finally:
         if ray.is_initialized():
