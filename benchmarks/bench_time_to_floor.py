@@ -9,7 +9,7 @@ got there within the recipe's training.
 
 Everything resumes: a seed already trained is kept, a seed cut short resumes from its
 newest checkpoint (its clock then includes the restart), an evaluation already made is
-reused. ``--from-benchmark DIR`` adds the seeds that a ``gymprecice benchmark`` run
+reused. ``--from-benchmark DIR`` (repeatable) adds the seeds that a ``gymprecice benchmark`` run
 trained (``DIR/train/<algo>``, every algorithm), timed from each seed's own training
 start, so one benchmark serves both the table and this figure.
 
@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 #: name -> (what it changes, `gymprecice train` flags). Every recipe trains JetCylinderFast-v0
-#: with 2 s episodes on 2 environments and checkpoints every 800 actions.
+#: with 2 s episodes on 2 environments and checkpoints every 800 actions (unless it says).
 RECIPES: dict[str, tuple[str, list[str]]] = {
     "ppo": (
         "the benchmark's: bash scripts/train.sh's PPO (512 x 512, 80-action rollouts) "
@@ -56,6 +56,22 @@ RECIPES: dict[str, tuple[str, list[str]]] = {
         "the benchmark's SAC: scripts/sac-fast.yml (update-to-data ratio 2, discount 0.98), "
         "4,000 actions",
         ["--algo", "sac", "--hyperparams", "scripts/sac-fast.yml", "--timesteps", "4000"],
+    ),
+    "sac-small-net": (
+        "the benchmark's SAC with a 64 x 64 network (a learner about twice as fast), "
+        "checkpoints every 400 actions",
+        [
+            "--algo",
+            "sac",
+            "--hyperparams",
+            "scripts/sac-fast.yml",
+            "--net",
+            "64,64",
+            "--timesteps",
+            "4000",
+            "--checkpoint-every",
+            "400",
+        ],
     ),
 }
 COMMON = [
@@ -111,7 +127,14 @@ def main() -> None:
     parser.add_argument("--recipes", default="ppo", help=f"comma-separated: {', '.join(RECIPES)}")
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--out", type=Path, default=Path("runs/bench-time-to-floor"))
-    parser.add_argument("--from-benchmark", type=Path, default=None, metavar="DIR")
+    parser.add_argument(
+        "--from-benchmark",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="scan the seeds of this gymprecice benchmark's --out too (repeatable)",
+    )
     parser.add_argument("--workers", type=int, default=2, help="evaluations at once")
     args = parser.parse_args()
     names = [r for r in args.recipes.split(",") if r]
@@ -119,15 +142,14 @@ def main() -> None:
     if unknown:
         parser.error(f"unknown recipe(s) {', '.join(unknown)}; choose from {', '.join(RECIPES)}")
     results: dict[str, dict] = {}
-    if args.from_benchmark is not None:
-        settings = json.loads((args.from_benchmark / "benchmark.json").read_text())
+    for bench in args.from_benchmark:
+        settings = json.loads((bench / "benchmark.json").read_text())
         for algo in settings["algos"]:
-            runs = sorted((args.from_benchmark / "train" / algo).glob("seed_*"))
-            label = (
-                f"benchmark: {algo.upper()}, {settings['timesteps']:,} actions "
-                f"({args.from_benchmark.name})"
+            runs = sorted((bench / "train" / algo).glob("seed_*"))
+            label = f"benchmark: {algo.upper()}, {settings['timesteps']:,} actions ({bench.name})"
+            results[label] = scan(
+                runs, args.out / "from-benchmark" / bench.name / algo, args.workers
             )
-            results[label] = scan(runs, args.out / "from-benchmark" / algo, args.workers)
     for recipe in names:
         runs = [args.out / recipe / f"seed_{seed}" for seed in range(args.seeds)]
         for seed, run in enumerate(runs):

@@ -153,6 +153,53 @@ def test_figures_are_written(bench) -> None:
         assert (bench["out"] / name).read_bytes().startswith(PNG_SIGNATURE)
 
 
+def test_the_flap_is_benchmarked_on_its_own_objective(tmp_path) -> None:
+    """An env without a drag floor or a default feedback signal (the heated plate, the other,
+    has no test double): every seed from each of its three held-out gusts, scored by the
+    flap's mean tip displacement, against the open-loop baselines."""
+    env, objective, starts = "perpendicular-flap-fast", "mean_tip_displacement", 3
+    out = tmp_path / "run"
+    argv = [
+        env,
+        "--double",
+        "--seeds",
+        "2",
+        "--algo",
+        "ppo",
+        "--timesteps",
+        "16",
+        "--train-args",
+        "--n-steps 8 --batch-size 8 --net 8,8 --vec-env dummy",
+        "--constants",
+        "2",
+        "--amplitudes",
+        "1",
+        "--frequencies",
+        "0.5",
+        "--feedback-gains=",
+        "--bootstrap-reps",
+        "200",
+    ]
+    assert main(["benchmark", *argv, "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert len(results["held_out_starts"]) == starts
+    assert [c["kind"] for c in results["controllers"]] == [
+        "learned",
+        "uncontrolled",
+        "constant",
+        "sinusoid",
+    ]
+    ppo = results["controllers"][0]
+    assert np.asarray(ppo["metrics"]["objective"]["scores"]).shape == (2, starts)
+    assert "floor_fraction" not in ppo["metrics"]  # no drag floor off the cylinders
+    summary = json.loads((out / "eval/ppo/seed_0/summary.json").read_text())
+    assert [e["start"] for e in summary["episodes"]] == list(range(starts))
+    assert ppo["metrics"]["objective"]["scores"][0] == pytest.approx(
+        [e[f"mean_{objective}"] for e in summary["episodes"]]
+    )
+    assert objective in (out / "results.md").read_text()
+
+
 def test_a_resumed_benchmark_keeps_finished_seeds(bench, monkeypatch, capsys) -> None:
     before = (bench["out"] / "results.json").read_text()
     monkeypatch.setattr(benchmark, "_train_once", _no_training)
