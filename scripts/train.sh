@@ -14,8 +14,9 @@
 # with a checkpoint every 800. Then `gymprecice time-to-floor` evaluates the checkpoints in
 # order from both held-out starts and prints when the training reached 90 % and 95 % of the
 # drag floor, counted from the moment this script was typed. Why SAC: in the benchmark's
-# five seeds it reached 95 % of the floor in a median of about 10 minutes, where PPO's
-# median seed did not within 4,000 actions (docs/benchmark.md). Then:
+# five seeds it reached 90 % of the floor in a median of about 10 minutes and 95 % in about
+# 16, where PPO's median seed did not reach 95 % within 4,000 actions (docs/benchmark.md).
+# Then:
 #
 #   .venv/bin/gymprecice evaluate jet-cylinder-fast --all-starts   # 10 s from each held-out start
 #   .venv/bin/gymprecice baseline jet-cylinder-fast --all-starts
