@@ -73,6 +73,28 @@ RECIPES: dict[str, tuple[str, list[str]]] = {
             "400",
         ],
     ),
+    "sac-utd1": (
+        "the benchmark's SAC with 2 gradient steps per batch (update-to-data ratio 1, the "
+        "learner's cost halved)",
+        [
+            "--algo",
+            "sac",
+            "--hyperparams",
+            "benchmarks/hyperparams/sac-utd1.yml",
+            "--timesteps",
+            "4000",
+        ],
+    ),
+    "td3-fast": (
+        "TD3 with sac-fast's settings (scripts/td3-fast.yml: update-to-data ratio 2, Gaussian "
+        "exploration noise 0.1)",
+        ["--algo", "td3", "--hyperparams", "scripts/td3-fast.yml", "--timesteps", "4000"],
+    ),
+    "ppo-model-ensemble": (
+        "the benchmark's PPO with drlFoam's model ensemble: after each CFD update, up to 4 "
+        "on trajectories 5 learned models predict (scripts/ppo-model-ensemble.yml)",
+        ["--hyperparams", "scripts/ppo-model-ensemble.yml", "--timesteps", "4000"],
+    ),
 }
 COMMON = [
     "--require-solvers",

@@ -310,6 +310,31 @@ def test_hyperparameters_resolve_defaults_then_file_then_flags(tmp_path):
         hp.resolve("sac", {}, {"n_steps": 8})
 
 
+def test_td3_explores_with_action_noise_and_a_file_can_choose_it(tmp_path):
+    """SB3's TD3 has no action noise by default: its deterministic policy would explore only
+    before learning_starts. gymprecice's default is Gaussian noise of 0.1, as RL Zoo's."""
+    from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
+
+    from gymprecice_tutorials import hyperparams as hp
+
+    noise = hp.model_kwargs(hp.resolve("td3", {}, {}), action_dim=2)["action_noise"]
+    assert isinstance(noise, NormalActionNoise)
+    assert noise._sigma.tolist() == [0.1, 0.1]
+    assert "action_noise" not in hp.model_kwargs(hp.resolve("sac", {}, {}))
+
+    path = tmp_path / "t.yml"
+    path.write_text("noise_type: ornstein-uhlenbeck\nnoise_std: 0.3\n")
+    params = hp.resolve("td3", hp.load_hyperparams_file(path, "td3", ()), {})
+    noise = hp.model_kwargs(params)["action_noise"]
+    assert isinstance(noise, OrnsteinUhlenbeckActionNoise) and noise._sigma.tolist() == [0.3]
+    path.write_text("noise_type: pink\n")
+    with pytest.raises(SystemExit, match=r"t\.yml: noise_type 'pink' is not one of normal"):
+        hp.load_hyperparams_file(path, "td3", ())
+    path.write_text("noise_type: normal\n")
+    with pytest.raises(SystemExit, match=r"t\.yml: noise_type is the action noise of SAC"):
+        hp.load_hyperparams_file(path, "ppo", ())
+
+
 # -- checkpoints -----------------------------------------------------------------------------
 
 

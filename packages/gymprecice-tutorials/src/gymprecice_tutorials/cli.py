@@ -161,7 +161,8 @@ def _train_parser(sub: Any) -> None:
         "hyperparameters. Ctrl-C, SIGTERM and SIGHUP save the model and a checkpoint. "
         "Hyperparameters shown as None take the algorithm's default (ppo: n_steps 80, "
         "batch_size 80, n_epochs 10, learning_rate 3e-4, gamma 0.99, net 512,512; sac/td3: "
-        "batch_size 256, net 256,256, SB3's others), then --hyperparams, then the flag.",
+        "batch_size 256, net 256,256, SB3's others, td3 with Gaussian action noise of std "
+        "0.1), then --hyperparams, then the flag.",
     )
     _env_options(p, rollout=False)
     p.add_argument("--algo", choices=ALGORITHMS, default="ppo", help="learning algorithm")

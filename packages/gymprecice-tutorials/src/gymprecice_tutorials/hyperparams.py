@@ -16,6 +16,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from gymprecice_tutorials.model_based.settings import ENSEMBLE_KEY, EnsembleSettings
+
 __all__ = [
     "ALGORITHMS",
     "DEFAULTS",
@@ -60,6 +62,11 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "buffer_size": 100_000,
         "learning_starts": 100,
         "normalize": False,
+        # TD3's policy is deterministic: without action noise it explores only during
+        # learning_starts. Gaussian noise of 0.1 of the (rescaled, [-1, 1]) action range is
+        # the TD3 paper's choice and RL Zoo's; SB3's own default is none.
+        "noise_type": "normal",
+        "noise_std": 0.1,
     },
 }
 
@@ -76,15 +83,26 @@ FLAGS = {
 }
 
 #: Keys of a hyperparameter file that are not constructor arguments of the algorithm.
-_OWN_KEYS = {"net", "normalize", "robustness"}
+_OWN_KEYS = {"net", "normalize", "robustness", ENSEMBLE_KEY, "noise_type", "noise_std"}
+#: RL Zoo's names of the exploration noise of SAC and TD3 (``noise_type``).
+NOISE_TYPES = ("normal", "ornstein-uhlenbeck")
 #: RL Zoo keys accepted in a file and ignored (the command line or the env decides them).
 _IGNORED_KEYS = {"policy", "n_timesteps", "n_envs", "env_wrapper", "normalize_kwargs"}
 
 
-def algorithm_class(algo: str) -> type:
-    """The Stable-Baselines3 class of ``algo`` (imported here: SB3 loads torch)."""
+def algorithm_class(algo: str, params: Mapping[str, Any] | None = None) -> type:
+    """The Stable-Baselines3 class of ``algo`` (imported here: SB3 loads torch).
+
+    With a ``model_ensemble`` key in ``params``, PPO is
+    :class:`~gymprecice_tutorials.model_based.ppo.ModelEnsemblePPO`; its saved models are
+    PPO's, so evaluation loads them as PPO.
+    """
     from stable_baselines3 import PPO, SAC, TD3
 
+    if algo == "ppo" and params is not None and params.get(ENSEMBLE_KEY) is not None:
+        from gymprecice_tutorials.model_based.ppo import ModelEnsemblePPO
+
+        return ModelEnsemblePPO
     return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
 
 
@@ -125,6 +143,22 @@ def load_hyperparams_file(path: Path, algo: str, env_keys: tuple[str, ...]) -> d
                 f"{where}: {algo.upper()} has no hyperparameter {key!r}; "
                 f"choose from {', '.join(sorted(allowed | _OWN_KEYS))}"
             )
+        if key == "noise_type" and value not in (*NOISE_TYPES, None):
+            raise SystemExit(
+                f"{where}: noise_type {value!r} is not one of {', '.join(NOISE_TYPES)}"
+            )
+        if key == "noise_type" and algo == "ppo":
+            raise SystemExit(
+                f"{where}: noise_type is the action noise of SAC and TD3; PPO explores with "
+                "its own policy's spread (set policy_kwargs: log_std_init instead)"
+            )
+        if key == ENSEMBLE_KEY:
+            if algo != "ppo":
+                raise SystemExit(
+                    f"{where}: {ENSEMBLE_KEY} is model-ensemble PPO's; {algo.upper()} has "
+                    "none (use --algo ppo, or drop the key)"
+                )
+            value = EnsembleSettings.from_value(value, where).to_json()
         out[key] = list(value) if key == "net" else value
     return out
 
@@ -149,15 +183,34 @@ def resolve(
     return params
 
 
-def model_kwargs(params: Mapping[str, Any]) -> dict[str, Any]:
-    """Constructor keyword arguments of the SB3 algorithm for resolved ``params``."""
+def model_kwargs(params: Mapping[str, Any], action_dim: int = 1) -> dict[str, Any]:
+    """Constructor keyword arguments of the SB3 algorithm for resolved ``params``.
+
+    ``noise_type``/``noise_std`` (RL Zoo's keys) become SB3's ``action_noise`` for an
+    action of ``action_dim`` numbers.
+    """
     kwargs = {k: v for k, v in params.items() if k not in _OWN_KEYS and k != "algo"}
+    if params.get("noise_type"):
+        kwargs["action_noise"] = _action_noise(
+            str(params["noise_type"]), float(params.get("noise_std", 0.1)), action_dim
+        )
     net = list(params["net"])
     critic = "vf" if params["algo"] == "ppo" else "qf"
     policy_kwargs = dict(kwargs.pop("policy_kwargs", None) or {})
     policy_kwargs.setdefault("net_arch", {"pi": net, critic: net})
     kwargs["policy_kwargs"] = policy_kwargs
     return kwargs
+
+
+def _action_noise(kind: str, std: float, action_dim: int) -> Any:
+    import numpy as np
+    from stable_baselines3.common.noise import (
+        NormalActionNoise,
+        OrnsteinUhlenbeckActionNoise,
+    )
+
+    cls = NormalActionNoise if kind == "normal" else OrnsteinUhlenbeckActionNoise
+    return cls(mean=np.zeros(action_dim), sigma=std * np.ones(action_dim))
 
 
 def changed_on_resume(saved: Mapping[str, Any], now: Mapping[str, Any]) -> list[str]:

@@ -48,6 +48,7 @@ from gymprecice_tutorials.envs import (
     vecnormalize_path,
 )
 from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
+from gymprecice_tutorials.model_based.settings import ENSEMBLE_KEY, EnsembleSettings
 from gymprecice_tutorials.requirements import (
     doctor_text,
     missing_requirements,
@@ -68,6 +69,9 @@ __all__ = [
     "train",
     "train_command",
 ]
+
+#: the directory of a model-ensemble run's CFD transitions (``--fresh`` removes it)
+TRANSITIONS_FILE_DIR = "model_ensemble"
 
 #: kept for callers of the earlier API: the newest checkpoint of a directory
 latest_checkpoint = newest_checkpoint
@@ -213,6 +217,8 @@ def train(
         stop_signals_interrupt,
     )
     from gymprecice_tutorials.evaluation_callback import eval_callback
+    from gymprecice_tutorials.model_based.ppo import TRANSITIONS_FILE
+    from gymprecice_tutorials.model_based.recorder import TransitionRecorder
     from gymprecice_tutorials.prerun_progress import PrerunProgress
 
     algo = params["algo"]
@@ -233,15 +239,17 @@ def train(
         for i in range(n_envs)
     ]
     base = _vec_env(fns, vec_env, out / "workers", ray)
-    vec: Any = base
+    ensemble = params.get(ENSEMBLE_KEY)
+    recorder = TransitionRecorder(base) if ensemble is not None else None
+    vec: Any = recorder or base
     evaluator: Any = None
     try:
         base.seed(seed)
         normalize = bool(params.get("normalize"))
-        cls = hp.algorithm_class(algo)
+        cls = hp.algorithm_class(algo, params)
         if resume is not None:
             if normalize:
-                vec = VecNormalize.load(str(vecnormalize_path(resume)), base)
+                vec = VecNormalize.load(str(vecnormalize_path(resume)), vec)
             model = cls.load(resume, env=vec, device=device, seed=seed)
             steps = resume.name[len(prefix) + 1 : -len("_steps.zip")]
             buffer = resume.with_name(f"{prefix}_replay_buffer_{steps}_steps.pkl")
@@ -250,16 +258,24 @@ def train(
             print(f"gymprecice train: resuming from {resume} ({model.num_timesteps} steps)")
         else:
             if normalize:
-                vec = VecNormalize(base, gamma=float(params["gamma"]))
+                vec = VecNormalize(vec, gamma=float(params["gamma"]))
             model = cls(
                 "MlpPolicy",
                 vec,
                 seed=seed,
                 device=device,
                 verbose=verbose,
-                **hp.model_kwargs(params),
+                **hp.model_kwargs(params, action_dim=math.prod(vec.action_space.shape)),
             )
         model.set_logger(segment_logger(out, algo, segment, verbose))
+        if recorder is not None:
+            restored = model.attach(
+                EnsembleSettings.from_value(ensemble, "hyperparams"),
+                recorder,
+                out / TRANSITIONS_FILE,
+            )
+            if restored:
+                print(f"gymprecice train: model ensemble: {restored:,} CFD transitions kept")
         done_before = int(model.num_timesteps)
         chunk = rollout_chunk(params, n_envs)
         remaining = max(0, timesteps - done_before)
@@ -440,7 +456,7 @@ def _adjust_batch_size(params: dict[str, Any], n_envs: int) -> list[str]:
 
 def _start_fresh(out: Path) -> None:
     """``--fresh``: remove what a previous run left that would be mistaken for this one."""
-    for pattern in ("checkpoints", "monitor", "tb", "eval"):
+    for pattern in ("checkpoints", "monitor", "tb", "eval", TRANSITIONS_FILE_DIR):
         shutil.rmtree(out / pattern, ignore_errors=True)
     for name in (
         "model.zip",
