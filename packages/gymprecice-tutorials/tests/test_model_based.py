@@ -175,23 +175,29 @@ def test_model_env_starts_from_recorded_flow_truncates_at_its_horizon_and_stays_
     ensemble = EnvironmentEnsemble(settings, obs_dim=2, act_dim=1, seed=0)
     ensemble.fit(segments)
     space = gym.spaces.Box(-np.inf, np.inf, (2,), np.float32)
-    env = ModelVecEnv(ensemble, space, gym.spaces.Box(-1, 1, (1,), np.float32), 3, seed=0)
+    actions = gym.spaces.Box(-1, 1, (1,), np.float32)
+    env = ModelVecEnv(ensemble, space, actions, 3, seed=0, trajectories=2)
+    assert env.num_envs == 4 and env._members.tolist() == [0, 1, 0, 1]
     with pytest.raises(RuntimeError, match=r"use\(segments\)"):
         env.reset()
     env.use(segments)
     recorded = {tuple(o) for s in segments for o in s.arrays()[0]}
-    obs = env.reset()
-    assert obs.shape == (2, 2) and all(tuple(o) in recorded for o in obs)
+    first = env.reset()
+    assert first.shape == (4, 2) and all(tuple(o) in recorded for o in first)
     low, high = env._bounds
     for step in range(3):
-        obs, rewards, dones, infos = env.step(np.ones((2, 1), np.float32))
+        obs, rewards, dones, infos = env.step(np.ones((4, 1), np.float32))
         assert np.all(obs >= low) and np.all(obs <= high)
-        assert rewards.shape == (2,)
+        assert rewards.shape == (4,)
         last = step == 2
-        assert dones.tolist() == [last, last]
+        assert dones.tolist() == [last] * 4
         assert all(info["TimeLimit.truncated"] == last for info in infos)
     assert all("terminal_observation" in info for info in infos)
     assert all(tuple(o) in recorded for o in obs)  # the next episode starts from the record
+    # every reset until the next use() starts where the first did: rollouts compare policies
+    assert np.array_equal(env.reset(), first)
+    env.use(segments)
+    assert not np.array_equal(env.reset(), first)
 
 
 # -- the algorithm -------------------------------------------------------------------------
@@ -201,7 +207,9 @@ def test_model_based_updates_add_ppo_updates_but_only_cfd_actions_count(tmp_path
     recorder = TransitionRecorder(DummyVecEnv([lambda: _Counter(8)] * 2))
     common = {"n_steps": 8, "batch_size": 8, "n_epochs": 1, "seed": 0}
     model = ModelEnsemblePPO("MlpPolicy", recorder, **common)
-    settings = EnsembleSettings(members=3, updates=2, hidden=(8,), epochs=2, quorum=0.0)
+    settings = EnsembleSettings(
+        members=3, updates=2, trajectories=2, hidden=(8,), epochs=2, quorum=0.0
+    )
     assert model.attach(settings, recorder, tmp_path / "t.npz") == 0
     model.learn(48)
     assert model.num_timesteps == 48  # three CFD rollouts of 2 x 8
@@ -210,6 +218,7 @@ def test_model_based_updates_add_ppo_updates_but_only_cfd_actions_count(tmp_path
     plain.learn(48)
     # the first rollout warms up; the next two add 2 model-based updates each
     assert model._n_updates == plain._n_updates + 2 * 2 * common["n_epochs"]
+    assert model._model_env.num_envs == 6  # 2 trajectories of each of 3 members
     assert model.rollout_buffer.n_envs == 2  # the CFD buffer is back
     assert model._last_obs.shape == (2, 2)
     with np.load(tmp_path / "t.npz") as data:

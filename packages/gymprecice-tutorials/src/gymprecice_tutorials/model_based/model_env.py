@@ -1,11 +1,15 @@
 """A vector env whose steps are the ensemble's predictions instead of the CFD's.
 
-Env ``i`` follows member ``i`` of the ensemble. Each episode starts from a stretch of a
+Env ``i`` follows member ``i mod members`` of the ensemble (``trajectories`` envs per
+member). Each episode starts from a stretch of a
 recorded CFD episode (the last ``history`` observations and the actions between them), so
 predicted trajectories begin in flows the solvers produced, and lasts ``horizon`` steps; its
 end is a truncation (``TimeLimit.truncated``), as the CFD episode's is, so PPO bootstraps it.
 Predictions are kept within the recorded range widened by ``margin`` of its span on each
 side: a member that drifts cannot feed the policy flows far outside what the data holds.
+:meth:`ModelVecEnv.use` draws each env's start once: every :meth:`~ModelVecEnv.reset`
+until the next ``use`` begins there again, so successive rollouts compare policies, not
+starts.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ __all__ = ["ModelVecEnv"]
 
 
 class ModelVecEnv(VecEnv):
-    """One env per ensemble member, stepping the member's predictions."""
+    """``trajectories`` envs per ensemble member, each stepping its member's predictions."""
 
     def __init__(
         self,
@@ -34,14 +38,16 @@ class ModelVecEnv(VecEnv):
         action_space: spaces.Box,
         horizon: int,
         seed: int,
+        trajectories: int = 1,
         margin: float = 0.1,
     ) -> None:
         self.ensemble = ensemble
         self.horizon = horizon
         self.margin = margin
         self._rng = np.random.default_rng(seed)
-        self._members = np.arange(ensemble.members)
+        self._members = np.tile(np.arange(ensemble.members), trajectories)
         self._starts: list[tuple[np.ndarray, np.ndarray]] = []
+        self._drawn: np.ndarray = np.zeros(len(self._members), np.int64)
         self._bounds = (np.full(1, -np.inf), np.full(1, np.inf))
         self._reward_bounds = (-np.inf, np.inf)
         n, h = len(self._members), ensemble.settings.history
@@ -69,6 +75,7 @@ class ModelVecEnv(VecEnv):
         low, high = np.min(lows, 0), np.max(highs, 0)
         span = high - low
         self._bounds = (low - self.margin * span, high + self.margin * span)
+        self._drawn = self._rng.integers(len(self._starts), size=self.num_envs)
         reward = np.concatenate(rewards)
         r_span = float(reward.max() - reward.min())
         self._reward_bounds = (
@@ -79,8 +86,9 @@ class ModelVecEnv(VecEnv):
     # -- the vector-env interface --------------------------------------------------------
 
     def reset(self) -> np.ndarray:
+        """Every env back to the start :meth:`use` drew for it."""
         for i in range(self.num_envs):
-            self._start(i)
+            self._start(i, int(self._drawn[i]))
         return self._obs[:, -1, :].copy()
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -106,10 +114,13 @@ class ModelVecEnv(VecEnv):
         self._pending = None
         return obs, rewards, dones, infos
 
-    def _start(self, i: int) -> None:
+    def _start(self, i: int, index: int | None = None) -> None:
+        """Env ``i`` from recorded start ``index`` (``None``: one drawn at random)."""
         if not self._starts:
             raise RuntimeError("ModelVecEnv.use(segments) must come before reset()")
-        obs, actions = self._starts[int(self._rng.integers(len(self._starts)))]
+        if index is None:
+            index = int(self._rng.integers(len(self._starts)))
+        obs, actions = self._starts[index]
         self._obs[i] = obs
         self._act[i, :-1, :] = actions
         self._act[i, -1, :] = 0.0

@@ -114,11 +114,12 @@ class ModelEnsemblePPO(PPO):
         callback.init_callback(self)
         done, previous, improving = 0, None, 1.0
         try:
-            self._last_obs = env.reset()
-            self._last_episode_starts = np.ones(model_env.num_envs, dtype=bool)
             while done < settings.updates:
+                self._last_obs = env.reset()  # the same starts each time (ModelVecEnv.use)
+                self._last_episode_starts = np.ones(model_env.num_envs, dtype=bool)
                 self.collect_rollouts(env, callback, self.rollout_buffer, self.n_steps)
-                per_member = _mean_reward_per_env(self.rollout_buffer.rewards)
+                per_env = _mean_reward_per_env(self.rollout_buffer.rewards)
+                per_member = per_env.reshape(-1, ensemble.members).mean(axis=0)
                 if previous is not None:
                     improving = float(np.mean(per_member > previous))
                     if improving < settings.quorum:
@@ -152,6 +153,7 @@ class ModelEnsemblePPO(PPO):
                 self.action_space,  # type: ignore[arg-type]
                 horizon=self.n_steps,
                 seed=(self.seed or 0) + 1,
+                trajectories=self._settings.trajectories if self._settings else 1,
             )
         return self._model_env
 

@@ -21,10 +21,12 @@ ENSEMBLE_KEY = "model_ensemble"
 class EnsembleSettings:
     """Model-ensemble PPO's settings; every field has a default, so ``{}`` is valid.
 
-    Up to ``updates`` model-based PPO updates follow each CFD update, each on one predicted
-    trajectory per member as long as a CFD rollout (``n_steps``); they stop early, as in
-    drlFoam, once fewer than a ``quorum`` share of the members predict a higher mean reward
-    than in the previous model-based rollout (0: never early). The networks read the last
+    Up to ``updates`` model-based PPO updates follow each CFD update, each on
+    ``trajectories`` predicted trajectories per member as long as a CFD rollout
+    (``n_steps``), from the same recorded starts within one CFD update's turn (so that two
+    turns differ by the policy, not by where they began); they stop early, as in drlFoam,
+    once fewer than a ``quorum`` share of the members predict a higher mean reward than in
+    the previous model-based rollout (0: never early). The networks read the last
     ``history`` observations and actions and predict the change of the observation and the
     reward; each fit continues from the previous weights for at most ``epochs`` epochs and
     stops when the held-out ``validation`` share has not improved for ``patience`` epochs.
@@ -32,6 +34,7 @@ class EnsembleSettings:
 
     members: int = 5
     updates: int = 4
+    trajectories: int = 2
     history: int = 2
     hidden: tuple[int, ...] = (128, 128)
     epochs: int = 30
@@ -81,7 +84,7 @@ class EnsembleSettings:
 
     def problem(self) -> str | None:
         """The first setting out of range, as ``name must ...``; ``None`` if all are fine."""
-        for name in ("members", "history", "epochs", "patience", "batch_size"):
+        for name in ("members", "trajectories", "history", "epochs", "patience", "batch_size"):
             if getattr(self, name) < 1:
                 return f"{name} must be at least 1, got {getattr(self, name)}"
         for name in ("updates", "warmup_rollouts"):
