@@ -219,10 +219,26 @@ def test_model_based_updates_add_ppo_updates_but_only_cfd_actions_count(tmp_path
     # the first rollout warms up; the next two add 2 model-based updates each
     assert model._n_updates == plain._n_updates + 2 * 2 * common["n_epochs"]
     assert model._model_env.num_envs == 6  # 2 trajectories of each of 3 members
+    logged = model.logger.name_to_value
+    assert logged["model/updates"] == 2
+    assert logged["train/n_updates"] == model._n_updates
     assert model.rollout_buffer.n_envs == 2  # the CFD buffer is back
     assert model._last_obs.shape == (2, 2)
     with np.load(tmp_path / "t.npz") as data:
         assert len(data["actions"]) == 48
+
+
+def test_model_ensemble_refuses_an_env_whose_observation_is_not_a_flat_box(tmp_path):
+    class _Pixels(_Counter):
+        observation_space = gym.spaces.Box(0, 1, (2, 2), np.float32)
+
+        def reset(self, *, seed=None, options=None):
+            return np.zeros((2, 2), np.float32), {}
+
+    recorder = TransitionRecorder(DummyVecEnv([_Pixels]))
+    model = ModelEnsemblePPO("MlpPolicy", recorder, n_steps=8, batch_size=8)
+    with pytest.raises(ValueError, match=r"flat Box observation space"):
+        model.attach(EnsembleSettings(), recorder, tmp_path / "t.npz")
 
 
 # -- as a user runs it ---------------------------------------------------------------------

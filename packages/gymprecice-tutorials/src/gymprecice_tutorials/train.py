@@ -269,11 +269,14 @@ def train(
             )
         model.set_logger(segment_logger(out, algo, segment, verbose))
         if recorder is not None:
-            restored = model.attach(
-                EnsembleSettings.from_value(ensemble, "hyperparams"),
-                recorder,
-                out / TRANSITIONS_FILE,
-            )
+            try:
+                restored = model.attach(
+                    EnsembleSettings.from_value(ensemble, "hyperparams"),
+                    recorder,
+                    out / TRANSITIONS_FILE,
+                )
+            except ValueError as exc:
+                raise SystemExit(f"gymprecice train: {exc}") from None
             if restored:
                 print(f"gymprecice train: model ensemble: {restored:,} CFD transitions kept")
         done_before = int(model.num_timesteps)

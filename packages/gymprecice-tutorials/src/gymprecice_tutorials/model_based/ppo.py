@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
@@ -53,7 +54,17 @@ class ModelEnsemblePPO(PPO):
     def attach(
         self, settings: EnsembleSettings, recorder: TransitionRecorder, transitions_file: Path
     ) -> int:
-        """Use ``settings`` and ``recorder``; reload transitions kept by an earlier segment."""
+        """Use ``settings`` and ``recorder``; reload transitions kept by an earlier segment.
+
+        Raises ``ValueError`` for an env the models cannot predict: they read and write
+        flat ``Box`` observations and actions.
+        """
+        for name, space in (("observation", self.observation_space), ("action", self.action_space)):
+            if not isinstance(space, spaces.Box) or len(space.shape) != 1:
+                raise ValueError(
+                    f"model_ensemble needs a flat Box {name} space (its models predict "
+                    f"vectors); this env's is {space}: drop model_ensemble for this env"
+                )
         self._settings = settings
         self._recorder = recorder
         self._transitions_file = transitions_file
@@ -112,6 +123,13 @@ class ModelEnsemblePPO(PPO):
         )
         callback = _Quiet()
         callback.init_callback(self)
+        # train/ keeps the CFD update's losses (the model-based ones would overwrite them);
+        # train/n_updates counts every update
+        cfd_losses = {
+            k: v
+            for k, v in self.logger.name_to_value.items()
+            if k.startswith("train/") and k != "train/n_updates"
+        }
         done, previous, improving = 0, None, 1.0
         try:
             while done < settings.updates:
@@ -130,6 +148,8 @@ class ModelEnsemblePPO(PPO):
         finally:
             self.num_timesteps, self._last_obs, self._last_episode_starts = saved[:3]
             self.rollout_buffer = saved[3]
+            for key, value in cfd_losses.items():
+                self.logger.record(key, value)
         self.logger.record("model/transitions", report.transitions)
         self.logger.record("model/validation_loss", report.mean_validation_loss)
         self.logger.record("model/fit_epochs", float(np.mean(report.epochs)))
