@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -260,29 +261,11 @@ def test_train_with_a_model_ensemble_on_the_double_resumes_with_its_transitions(
     (tmp_path / "me.yml").write_text(
         "model_ensemble:\n  members: 2\n  updates: 2\n  hidden: [16]\n  epochs: 3\n  quorum: 0\n"
     )
-    train = [
-        "train",
-        "jet-cylinder-fast",
-        "--double",
-        "--n-envs",
-        "2",
-        "--n-steps",
-        "8",
-        "--batch-size",
-        "8",
-        "--n-epochs",
-        "1",
-        "--episode-time",
-        "0.2",
-        "--net",
-        "16,16",
-        "--normalize",
-        "--hyperparams",
-        "me.yml",
-        "--no-progress-bar",
-        "--out",
-        "run",
-    ]
+    train = shlex.split(
+        "train jet-cylinder-fast --double --n-envs 2 --n-steps 8 --batch-size 8 --n-epochs 1 "
+        "--episode-time 0.2 --net 16,16 --normalize --hyperparams me.yml --no-progress-bar "
+        "--out run"
+    )
     _cli(tmp_path, *train, "--timesteps", "48")
     run = tmp_path / "run"
     kept = run / "model_ensemble" / "transitions.npz"
