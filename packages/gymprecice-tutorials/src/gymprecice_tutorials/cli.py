@@ -172,7 +172,9 @@ def _train_parser(sub: Any) -> None:
         default=None,
         metavar="FILE.yaml",
         help="hyperparameters (RL Zoo style: flat, or under the env id); flags override "
-        "them; copied into --out",
+        "them; copied into --out. Besides the algorithm's own: net, normalize, robustness, "
+        "noise_type/noise_std (SAC, TD3) and model_ensemble (PPO: model-ensemble PPO, "
+        "scripts/ppo-model-ensemble.yml)",
     )
     p.add_argument("--n-envs", type=_positive_int, default=1, help="parallel environments")
     p.add_argument(
