@@ -85,6 +85,18 @@ RECIPES: dict[str, tuple[str, list[str]]] = {
             "4000",
         ],
     ),
+    "sac-utd4": (
+        "the benchmark's SAC with 8 gradient steps per batch (update-to-data ratio 4, the "
+        "learner's cost doubled)",
+        [
+            "--algo",
+            "sac",
+            "--hyperparams",
+            "benchmarks/hyperparams/sac-utd4.yml",
+            "--timesteps",
+            "4000",
+        ],
+    ),
     "td3-fast": (
         "TD3 with sac-fast's settings (scripts/td3-fast.yml: update-to-data ratio 2, Gaussian "
         "exploration noise 0.1)",
