@@ -48,7 +48,11 @@ from gymprecice_tutorials.envs import (
     vecnormalize_path,
 )
 from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
-from gymprecice_tutorials.model_based.settings import ENSEMBLE_KEY, EnsembleSettings
+from gymprecice_tutorials.model_based.settings import (
+    ENSEMBLE_KEY,
+    TRANSITIONS_FILE,
+    EnsembleSettings,
+)
 from gymprecice_tutorials.requirements import (
     doctor_text,
     missing_requirements,
@@ -69,9 +73,6 @@ __all__ = [
     "train",
     "train_command",
 ]
-
-#: the directory of a model-ensemble run's CFD transitions (``--fresh`` removes it)
-TRANSITIONS_FILE_DIR = "model_ensemble"
 
 #: kept for callers of the earlier API: the newest checkpoint of a directory
 latest_checkpoint = newest_checkpoint
@@ -217,7 +218,6 @@ def train(
         stop_signals_interrupt,
     )
     from gymprecice_tutorials.evaluation_callback import eval_callback
-    from gymprecice_tutorials.model_based.ppo import TRANSITIONS_FILE
     from gymprecice_tutorials.model_based.recorder import TransitionRecorder
     from gymprecice_tutorials.prerun_progress import PrerunProgress
 
@@ -459,7 +459,7 @@ def _adjust_batch_size(params: dict[str, Any], n_envs: int) -> list[str]:
 
 def _start_fresh(out: Path) -> None:
     """``--fresh``: remove what a previous run left that would be mistaken for this one."""
-    for pattern in ("checkpoints", "monitor", "tb", "eval", TRANSITIONS_FILE_DIR):
+    for pattern in ("checkpoints", "monitor", "tb", "eval", str(TRANSITIONS_FILE.parent)):
         shutil.rmtree(out / pattern, ignore_errors=True)
     for name in (
         "model.zip",

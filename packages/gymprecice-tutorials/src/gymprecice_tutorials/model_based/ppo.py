@@ -21,12 +21,9 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from gymprecice_tutorials.model_based.ensemble import EnvironmentEnsemble
 from gymprecice_tutorials.model_based.model_env import ModelVecEnv
 from gymprecice_tutorials.model_based.recorder import TransitionRecorder
-from gymprecice_tutorials.model_based.settings import EnsembleSettings
+from gymprecice_tutorials.model_based.settings import TRANSITIONS_FILE, EnsembleSettings
 
 __all__ = ["TRANSITIONS_FILE", "ModelEnsemblePPO"]
-
-#: Where a run keeps its CFD transitions (under its output directory), for a resume.
-TRANSITIONS_FILE = Path("model_ensemble") / "transitions.npz"
 
 
 class _Quiet(BaseCallback):

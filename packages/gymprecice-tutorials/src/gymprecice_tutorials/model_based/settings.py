@@ -9,12 +9,15 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
-__all__ = ["ENSEMBLE_KEY", "EnsembleSettings"]
+__all__ = ["ENSEMBLE_KEY", "TRANSITIONS_FILE", "EnsembleSettings"]
 
 #: The hyperparameter-file key that turns PPO into model-ensemble PPO.
 ENSEMBLE_KEY = "model_ensemble"
+#: Where a run keeps its CFD transitions (under its output directory), for a resume.
+TRANSITIONS_FILE = Path("model_ensemble") / "transitions.npz"
 
 
 @dataclass(frozen=True)
