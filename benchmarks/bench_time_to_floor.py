@@ -97,6 +97,11 @@ RECIPES: dict[str, tuple[str, list[str]]] = {
             "4000",
         ],
     ),
+    "sac-overlap": (
+        "the benchmark's SAC with its updates while the solvers compute and one learner "
+        "thread (scripts/sac-overlap.yml)",
+        ["--algo", "sac", "--hyperparams", "scripts/sac-overlap.yml", "--timesteps", "4000"],
+    ),
     "td3-fast": (
         "TD3 with sac-fast's settings (scripts/td3-fast.yml: update-to-data ratio 2, Gaussian "
         "exploration noise 0.1)",

@@ -18,6 +18,11 @@ from typing import Any
 
 from gymprecice_tutorials.model_based.settings import ENSEMBLE_KEY, EnsembleSettings
 
+#: the key that overlaps SAC's and TD3's updates with the solvers (gymprecice_tutorials.overlap)
+OVERLAP_KEY = "overlap_updates"
+#: the key that caps the learner's CPU threads (torch.set_num_threads)
+THREADS_KEY = "torch_threads"
+
 __all__ = [
     "ALGORITHMS",
     "DEFAULTS",
@@ -83,7 +88,16 @@ FLAGS = {
 }
 
 #: Keys of a hyperparameter file that are not constructor arguments of the algorithm.
-_OWN_KEYS = {"net", "normalize", "robustness", ENSEMBLE_KEY, "noise_type", "noise_std"}
+_OWN_KEYS = {
+    "net",
+    "normalize",
+    "robustness",
+    ENSEMBLE_KEY,
+    OVERLAP_KEY,
+    THREADS_KEY,
+    "noise_type",
+    "noise_std",
+}
 #: RL Zoo's names of the exploration noise of SAC and TD3 (``noise_type``).
 NOISE_TYPES = ("normal", "ornstein-uhlenbeck")
 #: RL Zoo keys accepted in a file and ignored (the command line or the env decides them).
@@ -94,8 +108,10 @@ def algorithm_class(algo: str, params: Mapping[str, Any] | None = None) -> type:
     """The Stable-Baselines3 class of ``algo`` (imported here: SB3 loads torch).
 
     With a ``model_ensemble`` key in ``params``, PPO is
-    :class:`~gymprecice_tutorials.model_based.ppo.ModelEnsemblePPO`; its saved models are
-    PPO's, so evaluation loads them as PPO.
+    :class:`~gymprecice_tutorials.model_based.ppo.ModelEnsemblePPO`; with
+    ``overlap_updates: true``, SAC and TD3 run their updates while the solvers compute
+    (:mod:`gymprecice_tutorials.overlap`). Saved models are the plain algorithm's, so
+    evaluation loads them as such.
     """
     from stable_baselines3 import PPO, SAC, TD3
 
@@ -103,7 +119,12 @@ def algorithm_class(algo: str, params: Mapping[str, Any] | None = None) -> type:
         from gymprecice_tutorials.model_based.ppo import ModelEnsemblePPO
 
         return ModelEnsemblePPO
-    return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
+    cls = {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
+    if algo != "ppo" and params is not None and params.get(OVERLAP_KEY):
+        from gymprecice_tutorials.overlap import overlapping
+
+        return overlapping(cls)
+    return cls
 
 
 def load_hyperparams_file(path: Path, algo: str, env_keys: tuple[str, ...]) -> dict[str, Any]:
@@ -152,6 +173,19 @@ def load_hyperparams_file(path: Path, algo: str, env_keys: tuple[str, ...]) -> d
                 f"{where}: noise_type is the action noise of SAC and TD3; PPO explores with "
                 "its own policy's spread (set policy_kwargs: log_std_init instead)"
             )
+        if key == THREADS_KEY and (
+            isinstance(value, bool) or not isinstance(value, int) or value < 1
+        ):
+            raise SystemExit(f"{where}: {THREADS_KEY} is a whole number of threads, 1 or more")
+        if key == OVERLAP_KEY:
+            if not isinstance(value, bool):
+                raise SystemExit(f"{where}: {OVERLAP_KEY} is true or false, not {value!r}")
+            if algo == "ppo" and value:
+                raise SystemExit(
+                    f"{where}: {OVERLAP_KEY} overlaps SAC's and TD3's gradient steps with the "
+                    "solvers; PPO updates once per rollout (use --algo sac or td3, or drop "
+                    "the key)"
+                )
         if key == ENSEMBLE_KEY:
             if algo != "ppo":
                 raise SystemExit(

@@ -67,6 +67,7 @@ __all__ = [
     "default_out",
     "doctor_text",
     "latest_checkpoint",
+    "learner_threads",
     "make_env",
     "missing_requirements",
     "require_solvers",
@@ -246,11 +247,13 @@ def train(
     try:
         base.seed(seed)
         normalize = bool(params.get("normalize"))
+        learner_threads(params)
         cls = hp.algorithm_class(algo, params)
         if resume is not None:
             if normalize:
                 vec = VecNormalize.load(str(vecnormalize_path(resume)), vec)
-            model = cls.load(resume, env=vec, device=device, seed=seed)
+            learn_env = _overlapped(vec, params)
+            model = cls.load(resume, env=learn_env, device=device, seed=seed)
             steps = resume.name[len(prefix) + 1 : -len("_steps.zip")]
             buffer = resume.with_name(f"{prefix}_replay_buffer_{steps}_steps.pkl")
             if algo != "ppo" and buffer.is_file():
@@ -259,15 +262,18 @@ def train(
         else:
             if normalize:
                 vec = VecNormalize(vec, gamma=float(params["gamma"]))
+            learn_env = _overlapped(vec, params)
             model = cls(
                 "MlpPolicy",
-                vec,
+                learn_env,
                 seed=seed,
                 device=device,
                 verbose=verbose,
                 **hp.model_kwargs(params, action_dim=math.prod(vec.action_space.shape)),
             )
         model.set_logger(segment_logger(out, algo, segment, verbose))
+        if learn_env is not vec:
+            model.overlap_with(learn_env)
         if recorder is not None:
             try:
                 restored = model.attach(
@@ -358,6 +364,26 @@ def train(
             vec.close()
         except (EOFError, BrokenPipeError, OSError):
             pass  # workers already gone (killed with the job): nothing left to close
+
+
+def learner_threads(params: Mapping[str, Any]) -> int:
+    """Cap the learner's CPU threads at ``torch_threads`` when the hyperparameters set it;
+    return how many it has. They share the cores with the solvers: fewer can be faster."""
+    import torch
+
+    if params.get(hp.THREADS_KEY):
+        torch.set_num_threads(int(params[hp.THREADS_KEY]))
+    return torch.get_num_threads()
+
+
+def _overlapped(vec: Any, params: Mapping[str, Any]) -> Any:
+    """``vec`` under :class:`~gymprecice_tutorials.overlap.OverlappedUpdates` when the
+    hyperparameters overlap the updates with the solvers, else ``vec`` itself."""
+    if not params.get(hp.OVERLAP_KEY):
+        return vec
+    from gymprecice_tutorials.overlap import OverlappedUpdates
+
+    return OverlappedUpdates(vec)
 
 
 def _save(model: Any, vec: Any, checkpoints: Path, out: Path, prefix: str, normalize: bool) -> Path:
