@@ -11,9 +11,6 @@ from __future__ import annotations
 import csv
 import json
 import shlex
-import subprocess
-import sys
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -245,19 +242,9 @@ def test_model_ensemble_refuses_an_env_whose_observation_is_not_a_flat_box(tmp_p
 # -- as a user runs it ---------------------------------------------------------------------
 
 
-def _cli(cwd: Path, *args: str) -> str:
-    proc = subprocess.run(
-        [sys.executable, "-m", "gymprecice", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert proc.returncode == 0, f"exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}"
-    return proc.stdout + proc.stderr
-
-
-def test_train_with_a_model_ensemble_on_the_double_resumes_with_its_transitions(tmp_path):
+def test_train_with_a_model_ensemble_on_the_double_resumes_with_its_transitions(
+    tmp_path, gymprecice_cli
+):
     (tmp_path / "me.yml").write_text(
         "model_ensemble:\n  members: 2\n  updates: 2\n  hidden: [16]\n  epochs: 3\n  quorum: 0\n"
     )
@@ -266,7 +253,7 @@ def test_train_with_a_model_ensemble_on_the_double_resumes_with_its_transitions(
         "--episode-time 0.2 --net 16,16 --normalize --hyperparams me.yml --no-progress-bar "
         "--out run"
     )
-    _cli(tmp_path, *train, "--timesteps", "48")
+    gymprecice_cli(tmp_path, *train, "--timesteps", "48")
     run = tmp_path / "run"
     kept = run / "model_ensemble" / "transitions.npz"
     with np.load(kept) as data:
@@ -276,12 +263,12 @@ def test_train_with_a_model_ensemble_on_the_double_resumes_with_its_transitions(
     rows = list(csv.DictReader((run / "progress.csv").open()))
     assert float(rows[-1]["model/updates"]) == 2
 
-    out = _cli(tmp_path, *train, "--timesteps", "64")
+    out = gymprecice_cli(tmp_path, *train, "--timesteps", "64")
     assert "model ensemble: 48 CFD transitions kept" in out
     with np.load(kept) as data:
         assert len(data["actions"]) == 64
     assert (run / "checkpoints" / "ppo_64_steps.zip").is_file()
 
-    _cli(tmp_path, *train, "--timesteps", "16", "--fresh")
+    gymprecice_cli(tmp_path, *train, "--timesteps", "16", "--fresh")
     with np.load(kept) as data:
         assert len(data["actions"]) == 16  # --fresh dropped the earlier run's flow

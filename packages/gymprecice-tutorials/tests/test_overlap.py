@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import shlex
-import subprocess
-import sys
 
 import gymnasium as gym
 import numpy as np
@@ -144,19 +142,7 @@ def test_torch_threads_is_a_whole_number_of_threads(tmp_path):
             hp.load_hyperparams_file(path, "sac", ())
 
 
-def _cli(cwd, *args: str) -> str:
-    proc = subprocess.run(
-        [sys.executable, "-m", "gymprecice", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert proc.returncode == 0, f"exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}"
-    return proc.stdout + proc.stderr
-
-
-def test_train_overlaps_on_the_double_resumes_and_saves_a_plain_sac_model(tmp_path):
+def test_train_overlaps_on_the_double_resumes_and_saves_a_plain_sac_model(tmp_path, gymprecice_cli):
     (tmp_path / "o.yml").write_text(
         "overlap_updates: true\ntorch_threads: 1\nlearning_starts: 16\n"
     )
@@ -164,12 +150,12 @@ def test_train_overlaps_on_the_double_resumes_and_saves_a_plain_sac_model(tmp_pa
         "train jet-cylinder-fast --double --algo sac --n-envs 2 --episode-time 0.2 "
         "--net 16,16 --batch-size 8 --normalize --hyperparams o.yml --no-progress-bar --out run"
     )
-    _cli(tmp_path, *train, "--timesteps", "32")
+    gymprecice_cli(tmp_path, *train, "--timesteps", "32")
     run = tmp_path / "run"
     assert json.loads((run / "hyperparams.json").read_text())["overlap_updates"] is True
     model = SAC.load(run / "model.zip")  # what evaluate loads: a plain SAC
     # one gradient step per batch step of two envs after step 8, the last one included
     assert model.num_timesteps == 32 and model._n_updates == 8
     assert (run / "model_vecnormalize.pkl").is_file()
-    _cli(tmp_path, *train, "--timesteps", "48")
+    gymprecice_cli(tmp_path, *train, "--timesteps", "48")
     assert SAC.load(run / "model.zip")._n_updates == 16
