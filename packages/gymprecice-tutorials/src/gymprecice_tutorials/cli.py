@@ -173,8 +173,9 @@ def _train_parser(sub: Any) -> None:
         metavar="FILE.yaml",
         help="hyperparameters (RL Zoo style: flat, or under the env id); flags override "
         "them; copied into --out. Besides the algorithm's own: net, normalize, robustness, "
-        "torch_threads (the learner's CPU threads), noise_type/noise_std and overlap_updates "
-        "(SAC, TD3: gradient steps while the solvers compute) and model_ensemble (PPO: model-ensemble PPO, "
+        "torch_threads (the learner's CPU threads), noise_type/noise_std and "
+        "overlap_updates (SAC, TD3: gradient steps while the solvers compute, "
+        "scripts/sac-overlap.yml) and model_ensemble (PPO: model-ensemble PPO, "
         "scripts/ppo-model-ensemble.yml)",
     )
     p.add_argument("--n-envs", type=_positive_int, default=1, help="parallel environments")

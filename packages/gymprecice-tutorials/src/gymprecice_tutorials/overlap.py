@@ -13,9 +13,10 @@ buffer as SB3's order would, less the one transition still being computed). Ever
 SB3 asks for runs; the last one runs when ``learn`` ends. An update that raises raises from
 the env step, as SB3's own would from ``train``.
 
-It pays only where the machine has cores that the solvers leave idle: the update shares
-them with the solvers, so on a machine whose cores the solvers fill it can slow them by
-what it saves.
+What it pays depends on the cores: the update shares them with the solvers. On 2 cores
+with two solvers it took 2 to 21 % off SAC's wall-clock with one learner thread
+(``torch_threads: 1``), and with torch's default of a thread per core it slowed the solvers
+by more than it saved (docs/benchmark.md, "The levers").
 """
 
 from __future__ import annotations
