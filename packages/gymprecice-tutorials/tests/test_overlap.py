@@ -150,7 +150,8 @@ def test_train_overlaps_on_the_double_resumes_and_saves_a_plain_sac_model(tmp_pa
         "train jet-cylinder-fast --double --algo sac --n-envs 2 --episode-time 0.2 "
         "--net 16,16 --batch-size 8 --normalize --hyperparams o.yml --no-progress-bar --out run"
     )
-    gymprecice_cli(tmp_path, *train, "--timesteps", "32")
+    out = gymprecice_cli(tmp_path, *train, "--timesteps", "32")
+    assert "overlap_updates: each update runs while the solvers compute" in out
     run = tmp_path / "run"
     assert json.loads((run / "hyperparams.json").read_text())["overlap_updates"] is True
     model = SAC.load(run / "model.zip")  # what evaluate loads: a plain SAC

@@ -274,6 +274,11 @@ def train(
         model.set_logger(segment_logger(out, algo, segment, verbose))
         if learn_env is not vec:
             model.overlap_with(learn_env)
+            print(
+                f"gymprecice train: {hp.OVERLAP_KEY}: each update runs while the solvers compute "
+                "the next step, so the telemetry below counts it in the batch step, not the "
+                "learner's share"
+            )
         if recorder is not None:
             try:
                 restored = model.attach(
