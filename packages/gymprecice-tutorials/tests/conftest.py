@@ -27,3 +27,22 @@ def gymprecice_cli() -> Callable[..., str]:
         return proc.stdout + proc.stderr
 
     return run
+
+
+@pytest.fixture(scope="module")
+def ray_cluster():
+    """A real Ray cluster on this machine: a head with no CPU and two worker nodes of two
+    CPUs each, so that every actor and task that asks for a CPU lands on a worker."""
+    ray = pytest.importorskip("ray", reason="--ray needs gymprecice-core[ray]")
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(
+        initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False}
+    )
+    for _ in range(2):
+        cluster.add_node(num_cpus=2)
+    cluster.wait_for_nodes()
+    yield cluster
+    if ray.is_initialized():
+        ray.shutdown()
+    cluster.shutdown()

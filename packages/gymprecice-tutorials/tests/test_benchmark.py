@@ -507,45 +507,62 @@ def test_commands_failing_in_worker_processes_are_all_reported_not_waited_for(
 # -- --ray: a real Ray cluster on this machine ------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def ray_cluster():
-    """A head with no CPU for envs and two worker nodes: every env actor lands on a worker."""
-    ray = pytest.importorskip("ray", reason="benchmark --ray needs gymprecice-core[ray]")
-    from ray.cluster_utils import Cluster
-
-    cluster = Cluster(
-        initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False}
-    )
-    for _ in range(2):
-        cluster.add_node(num_cpus=2)
-    cluster.wait_for_nodes()
-    yield cluster
-    if ray.is_initialized():
-        ray.shutdown()
-    cluster.shutdown()
-
-
 @pytest.mark.timeout(600)
-def test_with_ray_every_seed_trains_at_once_with_its_envs_on_the_cluster(
+def test_with_ray_every_seed_trains_evaluates_and_the_sweep_runs_on_the_cluster(
     ray_cluster, tmp_path, capsys, monkeypatch
 ) -> None:
     out, nodes = tmp_path / "bench", tmp_path / "nodes"
-    monkeypatch.setenv("GYMPRECICE_NODE_DIR", str(nodes))  # where the env actors work
+    monkeypatch.setenv("GYMPRECICE_NODE_DIR", str(nodes))  # where actors and tasks work
     address = ray_cluster.address
-    assert main(["benchmark", *TINY, "--no-baselines", "--ray", address, "--out", str(out)]) == 0
+    assert main(["benchmark", *TINY, "--ray", address, "--out", str(out)]) == 0
     said = capsys.readouterr().out
     assert (
         f"training 2 seed(s) at once, their envs as Ray actors on the cluster at {address}" in said
     )
+    workers = {node.node_id for node in ray_cluster.worker_nodes}
     for seed in range(2):
-        assert (out / "train" / "ppo" / f"seed_{seed}" / "model.zip").is_file()
-        assert (out / "eval" / "ppo" / f"seed_{seed}" / "summary.json").is_file()
+        train, run = out / "train" / "ppo" / f"seed_{seed}", out / "eval" / "ppo" / f"seed_{seed}"
+        assert (train / "model.zip").is_file()
+        assert f"evaluating ppo seed {seed}: done on" in said
+        # evaluated on a worker node (the head has no CPU), its output brought back here
+        # with the paths of this machine, the env runs left behind but their logs kept
+        remote = json.loads((run / "remote.json").read_text())
+        assert remote["node_id"] in workers and remote["status"] == 0
+        summary = json.loads((run / "summary.json").read_text())
+        assert len(summary["episodes"]) == 2
+        manifest = (run / "manifest.json").read_text()
+        assert str(train) in manifest and "gymprecice-command-" not in manifest
+        kept = [p for p in (run / "envs").rglob("*") if p.is_file()]
+        assert kept and all(p.name.startswith("log.") or p.suffix == ".log" for p in kept)
+    sweep = json.loads((out / "baselines" / "remote.json").read_text())
+    assert sweep["node_id"] in workers and (out / "baselines" / "sweep.json").is_file()
     rows = json.loads((out / "results.json").read_text())["controllers"]
-    assert [c["label"] for c in rows] == ["PPO"]
-    # one env per seed, each an actor that worked in its node directory: on a worker node,
-    # as the head has no CPU to give
+    assert [c["label"] for c in rows][:2] == ["PPO", "uncontrolled"]
+    # one env per seed, each an actor that worked in its node directory; every task's
+    # scratch directory is gone
     actors = sorted(p.name.split("-")[0] for p in (nodes / "gymprecice-ray").iterdir())
     assert actors == ["env_0", "env_0"]
+    assert not list(nodes.glob("gymprecice-command-*"))
+
+    # a rerun keeps everything: nothing trains, nothing is sent to the cluster again
+    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    assert main(["benchmark", *TINY, "--ray", address, "--out", str(out)]) == 0
+    assert "done on" not in capsys.readouterr().out
+
+
+def test_with_ray_a_sweep_no_node_can_hold_is_refused_before_training(
+    ray_cluster, tmp_path, capsys
+) -> None:
+    out = tmp_path / "bench"
+    argv = ["benchmark", *TINY, "--workers", "3", "--ray", ray_cluster.address]
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--out", str(out)])
+    assert exc.value.code == 2
+    assert (
+        "the baselines' sweep (--workers 3) needs 3 CPUs on one node, but the cluster's "
+        "largest node has 2" in capsys.readouterr().err
+    )
+    assert not (out / "train").exists()
 
 
 def test_with_ray_a_cluster_that_does_not_answer_is_refused_before_training(

@@ -11,8 +11,9 @@ docs/benchmark.md on one environment, reusing the other commands for each piece:
    and if it still fails the benchmark stops without a table: a seed is never silently
    dropped from the aggregate. With ``--ray auto|ADDRESS`` every seed trains at once, each
    from its own process here (its learner) with its envs as Ray actors on the cluster
-   (``gymprecice train --ray``, docs/cluster.md); the evaluations below stay on this
-   machine, ``--workers`` at once;
+   (``gymprecice train --ray``, docs/cluster.md), and the evaluations and the sweep below
+   are Ray tasks on the cluster too (:mod:`gymprecice_tutorials.remote_commands`);
+   without it they run here, ``--workers`` at once;
 2. **evaluate** every policy deterministically from every held-out start
    (``gymprecice evaluate --all-starts`` into ``<out>/eval/<algo>/seed_<k>``);
 3. **baselines** on the same starts (``gymprecice sweep`` into ``<out>/baselines``): the
@@ -49,6 +50,7 @@ import numpy as np
 from gymprecice_tutorials.benchmark_stats import estimate
 from gymprecice_tutorials.environments import TutorialEnv, find_environment
 from gymprecice_tutorials.hyperparams import ALGORITHMS
+from gymprecice_tutorials.remote_commands import RemoteCommand
 
 __all__ = [
     "BenchmarkError",
@@ -401,6 +403,40 @@ def _worker_train_seed(argv: list[str], run: str, label: str, retries: int) -> i
     return _exit_status(_train_seed, argv, Path(run), label, retries)
 
 
+def _solver_cpus(env: gym.Env) -> float:
+    """CPUs the solvers of one env use: the sum of their ``np`` options (1 each)."""
+    config = getattr(env.unwrapped, "config", None)
+    solvers = getattr(config, "solvers", None) or {}
+    return float(sum(max(1, int(s.options.get("np", 1) or 1)) for s in solvers.values()) or 1)
+
+
+def _sweep_cpus(args: argparse.Namespace, env_cpus: float) -> float:
+    """The sweep's ``--workers`` envs at once, on one node."""
+    return max(1, args.workers) * env_cpus
+
+
+def _run_everywhere(
+    commands: list[RemoteCommand], args: argparse.Namespace, one_at_a_time: bool = False
+) -> None:
+    """Run ``commands`` on the cluster with ``--ray`` (Ray tasks that ship their inputs and
+    bring their outputs back), else here, ``--workers`` at once (``one_at_a_time``: a
+    command that spreads its own work over ``--workers``)."""
+    if args.ray:
+        from gymprecice_tutorials.remote_commands import RemoteCommandError, run_commands
+
+        try:
+            run_commands(commands, args.ray)
+        except RemoteCommandError as exc:
+            raise BenchmarkError(str(exc), 1) from None
+        return
+    local = [([*c.argv, *_input_options(c), "--out", str(c.out)], c.what) for c in commands]
+    _run_commands(local, 1 if one_at_a_time else args.workers)
+
+
+def _input_options(command: RemoteCommand) -> list[str]:
+    return [item for option, path in command.inputs.items() for item in (option, str(path))]
+
+
 def _run_commands(commands: list[tuple[list[str], str]], workers: int) -> None:
     """Run ``gymprecice`` commands, ``workers`` at once in their own processes (one: here,
     in turn). Every command runs even if one fails; then the failures are reported.
@@ -448,8 +484,9 @@ def _run_in_pool(
         )
 
 
-def _check_ray(address: str) -> None:
-    """Refuse ``--ray`` before anything trains when Ray is missing or no cluster answers."""
+def _check_ray(address: str, needs: Sequence[tuple[str, float]]) -> None:
+    """Refuse ``--ray`` before anything trains when Ray is missing, no cluster answers, or
+    no node has the CPUs one of ``needs`` (what, CPUs on one node) asks for."""
     try:
         import ray
     except ImportError:
@@ -470,6 +507,17 @@ def _check_ray(address: str) -> None:
             f"({getattr(exc, 'strerror', None) or exc}); start one (ray start --head, see "
             "docs/cluster.md) or pass its head's address"
         ) from None
+    else:
+        from gymprecice_tutorials.remote_commands import largest_node_cpus
+
+        largest = largest_node_cpus()
+        for what, cpus in needs:
+            if cpus > largest:
+                raise BenchmarkError(
+                    f"--ray {address}: {what} needs {cpus:g} CPUs on one node, but the "
+                    f"cluster's largest node has {largest:g}; add a larger node, or lower "
+                    "--workers"
+                )
     finally:
         if ray.is_initialized():
             ray.shutdown()
@@ -633,6 +681,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
         try:
             starts = require_held_out_starts(probe, env)
             space = probe.action_space
+            env_cpus = _solver_cpus(probe)
         finally:
             probe.close()
     except NoHeldOutStarts as exc:
@@ -645,7 +694,12 @@ def benchmark_command(args: argparse.Namespace) -> int:
         _check_baselines_fit(space)
         _check_grids(args, env)
     if args.ray:
-        _check_ray(args.ray)
+        needs = [("an evaluation", env_cpus)]
+        if not args.no_baselines:
+            needs.append(
+                (f"the baselines' sweep (--workers {args.workers})", _sweep_cpus(args, env_cpus))
+            )
+        _check_ray(args.ray, needs)
     settings = _settings(args, env, algos, extra)
     settings["held_out_starts"] = list(starts)
     _lock_settings(out, settings, args.fresh)
@@ -682,17 +736,22 @@ def benchmark_command(args: argparse.Namespace) -> int:
 
     # -- 2. evaluation from every held-out start (each seed's final model)
     rollout_common = _common(args, args.eval_time)
-    pending: list[tuple[list[str], str]] = []
+    pending: list[RemoteCommand] = []
     for algo in algos:
         for seed in range(args.seeds):
             train_dir = out / "train" / algo / f"seed_{seed}"
             run = out / "eval" / algo / f"seed_{seed}"
             if not _evaluated(run, train_dir / "model.zip"):
-                argv = ["evaluate", args.env, "--policy", str(train_dir), "--all-starts"]
                 pending.append(
-                    ([*argv, "--out", str(run), *rollout_common], f"evaluating {algo} seed {seed}")
+                    RemoteCommand(
+                        ["evaluate", args.env, "--all-starts", *rollout_common],
+                        run,
+                        f"evaluating {algo} seed {seed}",
+                        inputs={"--policy": train_dir},
+                        cpus=env_cpus,
+                    )
                 )
-    _run_commands(pending, args.workers)
+    _run_everywhere(pending, args)
     controllers: list[dict[str, Any]] = []
     for algo in algos:
         runs = []
@@ -719,15 +778,16 @@ def benchmark_command(args: argparse.Namespace) -> int:
                 f"--frequencies={args.frequencies}",
                 f"--feedback-gains={args.feedback_gains}",
                 f"--feedback-delays={args.feedback_delays}",
-                "--out",
-                str(sweep_dir),
                 "--workers",
                 str(args.workers),
                 *rollout_common,
             ]
             if args.feedback_signal:
                 argv.append(f"--feedback-signal={args.feedback_signal}")
-            _run_command(argv, "the baselines' sweep")
+            sweep = RemoteCommand(
+                argv, sweep_dir, "the baselines' sweep", cpus=_sweep_cpus(args, env_cpus)
+            )
+            _run_everywhere([sweep], args, one_at_a_time=True)
         sweep = json.loads((sweep_dir / "sweep.json").read_text())
         chosen = [("uncontrolled", "uncontrolled", None)]
         for kind in ("constant", "sinusoid", "feedback"):
