@@ -172,6 +172,8 @@ def test_the_flap_is_benchmarked_on_its_own_objective(tmp_path) -> None:
         "1",
         "--frequencies",
         "0.5",
+        "--centre",
+        "0.875",  # where the flap's best open loop swings
         "--feedback-gains=",
     ]
     assert main(["benchmark", *argv, "--out", str(out)]) == 0
@@ -192,6 +194,9 @@ def test_the_flap_is_benchmarked_on_its_own_objective(tmp_path) -> None:
         [e[f"mean_{objective}"] for e in summary["episodes"]]
     )
     assert objective in (out / "results.md").read_text()
+    sweep = json.loads((out / "baselines" / "manifest.json").read_text())
+    assert sweep["settings"]["centre"] == 0.875
+    assert results["controllers"][3]["label"].startswith("best sinusoid: sine-c0.875-")
 
 
 def test_a_resumed_benchmark_keeps_finished_seeds(bench, monkeypatch, capsys) -> None:
@@ -200,6 +205,24 @@ def test_a_resumed_benchmark_keeps_finished_seeds(bench, monkeypatch, capsys) ->
     assert main(["benchmark", *TINY, "--out", str(bench["out"])]) == 0
     assert "ppo seed 1: trained already, kept" in capsys.readouterr().out
     assert json.loads((bench["out"] / "results.json").read_text()) == json.loads(before)
+
+
+def test_a_benchmark_written_before_the_sinusoids_had_a_centre_resumes(
+    bench, tmp_path, monkeypatch, capsys
+) -> None:
+    import shutil
+
+    out = tmp_path / "run"
+    shutil.copytree(bench["out"], out)
+    settings = json.loads((out / "benchmark.json").read_text())
+    del settings["baselines"]["centre"]
+    (out / "benchmark.json").write_text(json.dumps(settings))
+    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    assert main(["benchmark", *TINY, "--out", str(out)]) == 0
+    assert json.loads((out / "benchmark.json").read_text())["baselines"]["centre"] == 0.5
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", *TINY, "--centre", "0.875", "--out", str(out)])
+    assert '"centre": 0.875' in capsys.readouterr().err and exc.value.code == 2
 
 
 def test_a_resumed_benchmark_with_other_settings_is_refused(bench, monkeypatch, capsys) -> None:
@@ -342,6 +365,7 @@ def test_a_training_flag_the_algorithm_lacks_is_refused_before_training(
         ("--frequencies=0,3", "--frequencies must be positive"),
         ("--feedback-delays=1.5", "--feedback-delays are whole numbers"),
         ("--amplitudes=x", "--amplitudes takes comma-separated numbers"),
+        ("--centre=1.5", "--centre is a fraction of the action box, 0 to 1; got 1.5"),
     ],
 )
 def test_a_bad_baseline_grid_is_refused_before_training(

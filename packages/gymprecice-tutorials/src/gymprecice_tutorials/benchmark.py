@@ -160,6 +160,8 @@ def _check_grids(args: argparse.Namespace, env: TutorialEnv) -> None:
     from gymprecice_tutorials.sweep import parse_grid
 
     parse_grid(args.amplitudes, "amplitudes")
+    if not 0.0 <= args.centre <= 1.0:
+        raise BenchmarkError(f"--centre is a fraction of the action box, 0 to 1; got {args.centre}")
     if any(f <= 0 for f in parse_grid(args.frequencies, "frequencies")):
         raise BenchmarkError("--frequencies must be positive (Hz)")
     if args.feedback_gains:
@@ -246,6 +248,7 @@ def _settings(args: argparse.Namespace, env: TutorialEnv, algos: list[str], extr
             "constants": args.constants,
             "amplitudes": args.amplitudes,
             "frequencies": args.frequencies,
+            "centre": args.centre,
             "feedback_gains": args.feedback_gains,
             "feedback_delays": args.feedback_delays,
             "feedback_signal": args.feedback_signal,
@@ -262,7 +265,7 @@ def _lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
             shutil.rmtree(out / name, ignore_errors=True)
         path.unlink(missing_ok=True)
     if path.is_file():
-        original = json.loads(path.read_text())
+        original = _with_defaults(json.loads(path.read_text()))
         saved = _with_added_algorithms(original, settings)
         changed = [
             f"{key} is {json.dumps(settings.get(key))} now but {json.dumps(saved.get(key))} "
@@ -285,6 +288,14 @@ def _lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
             )
     out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(settings, indent=2) + "\n")
+
+
+def _with_defaults(saved: dict[str, Any]) -> dict[str, Any]:
+    """``saved`` with the settings that a benchmark written before they existed ran with."""
+    baselines = saved.get("baselines")
+    if isinstance(baselines, dict) and "centre" not in baselines:
+        saved = {**saved, "baselines": {**baselines, "centre": 0.5}}
+    return saved
 
 
 def _with_added_algorithms(saved: dict[str, Any], settings: dict[str, Any]) -> dict[str, Any]:
@@ -776,6 +787,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
                 # NAME=VALUE: a grid may start with a minus sign
                 f"--amplitudes={args.amplitudes}",
                 f"--frequencies={args.frequencies}",
+                f"--centre={args.centre!r}",
                 f"--feedback-gains={args.feedback_gains}",
                 f"--feedback-delays={args.feedback_delays}",
                 "--workers",

@@ -566,6 +566,13 @@ def _benchmark_parser(sub: Any) -> None:
     )
     p.add_argument("--frequencies", default="1.5,3,6", help="open-loop sinusoid frequencies (Hz)")
     p.add_argument(
+        "--centre",
+        type=float,
+        default=0.5,
+        help="the sinusoids' centre as a fraction of the action box (0.5: its middle; the "
+        "flap's best open loop swings about 0.875)",
+    )
+    p.add_argument(
         "--feedback-gains",
         default="-2,-1,1,2",
         help="feedback gains to sweep (empty: no feedback baseline)",
@@ -588,7 +595,8 @@ def _benchmark_parser(sub: Any) -> None:
         metavar="auto|ADDRESS",
         default=None,
         help="train every seed at once, its envs as Ray actors on this Ray cluster (auto: "
-        "the one this machine joined); needs gymprecice-core[ray], see docs/cluster.md",
+        "the one this machine joined), and run the evaluations and the sweep as Ray tasks "
+        "there; needs gymprecice-core[ray], see docs/cluster.md",
     )
     p.set_defaults(func=_benchmark)
 
