@@ -54,10 +54,9 @@ def test_a_training_directory_ships_its_top_level_files_and_an_output_comes_back
 
 
 def test_a_command_no_node_can_hold_is_refused_with_the_fix() -> None:
-    command = RemoteCommand(["sweep", "jet-cylinder-fast"], Path("out"), "the sweep", cpus=8)
-    check_fits([command], 8)
+    check_fits([("the sweep", 8)], 8)
     with pytest.raises(RemoteCommandError, match="the sweep needs 8 CPUs on one node, but the"):
-        check_fits([command], 4)
+        check_fits([("the sweep", 8)], 4)
 
 
 def test_a_failed_command_is_reported_with_its_output_tail_after_the_others_ran(

@@ -519,16 +519,16 @@ def _check_ray(address: str, needs: Sequence[tuple[str, float]]) -> None:
             "docs/cluster.md) or pass its head's address"
         ) from None
     else:
-        from gymprecice_tutorials.remote_commands import largest_node_cpus
+        from gymprecice_tutorials.remote_commands import (
+            RemoteCommandError,
+            check_fits,
+            largest_node_cpus,
+        )
 
-        largest = largest_node_cpus()
-        for what, cpus in needs:
-            if cpus > largest:
-                raise BenchmarkError(
-                    f"--ray {address}: {what} needs {cpus:g} CPUs on one node, but the "
-                    f"cluster's largest node has {largest:g}; add a larger node, or lower "
-                    "--workers"
-                )
+        try:
+            check_fits(needs, largest_node_cpus())
+        except RemoteCommandError as exc:
+            raise BenchmarkError(f"--ray {address}: {exc}") from None
     finally:
         if ray.is_initialized():
             ray.shutdown()

@@ -235,13 +235,14 @@ def largest_node_cpus() -> float:
     )
 
 
-def check_fits(commands: Sequence[RemoteCommand], cpus: float) -> None:
-    """Refuse a command no node of ``cpus`` CPUs can run (Ray would queue it for ever)."""
-    for command in commands:
-        if command.cpus > cpus:
+def check_fits(needs: Sequence[tuple[str, float]], cpus: float) -> None:
+    """Refuse any of ``needs`` (what, CPUs on one node) that no node of ``cpus`` CPUs can
+    run (Ray would queue it for ever)."""
+    for what, wanted in needs:
+        if wanted > cpus:
             raise RemoteCommandError(
-                f"{command.what} needs {command.cpus:g} CPUs on one node, but the cluster's "
-                f"largest node has {cpus:g}: add a larger node, or lower --workers"
+                f"{what} needs {wanted:g} CPUs on one node, but the cluster's largest node "
+                f"has {cpus:g}; add a larger node, or lower --workers"
             )
 
 
@@ -263,7 +264,7 @@ def run_commands(commands: Sequence[RemoteCommand], address: str) -> None:
     if owns:
         ray.init(address=address, log_to_driver=False)
     try:
-        check_fits(commands, largest_node_cpus())
+        check_fits([(c.what, c.cpus) for c in commands], largest_node_cpus())
         task = ray.remote(max_retries=0)(run_on_node)
         environ = {k: v for k, v in os.environ.items() if k.startswith(FORWARD_PREFIX)}
         refs: dict[Any, RemoteCommand] = {}
