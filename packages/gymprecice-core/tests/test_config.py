@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.config import check_solver_kinds, load_config
+from gymprecice.config import SolverSpec, check_solver_kinds, load_config
 from gymprecice.errors import ConfigError
 
 
@@ -211,3 +211,17 @@ def test_a_kind_of_a_plugin_that_failed_to_load_shows_its_import_error(case_dir:
     message = str(info.value)
     assert "'rod' (from gymprecice-rod 0.1): cannot import 'rod_plugin'" in message
     assert "ModuleNotFoundError: numba" in message and "pip install" not in message
+
+
+
+def test_solver_cpus_adds_up_each_solvers_np_one_when_unset(case_dir: Path) -> None:
+    cfg = load_config(case_dir)
+    assert cfg.solver_cpus == 1  # one serial solver
+    # np is an option of the kinds that run MPI (openfoam, dealii), not of "command"
+    cfg.solvers = {
+        "fluid": SolverSpec("fluid", "openfoam", "fluid", "Fluid", {"np": 4}),
+        "solid": SolverSpec("solid", "dealii", "solid", "Solid", {"np": None}),
+        "heat": SolverSpec("heat", "fenics", "heat", "Heat"),
+    }
+    assert [spec.cpus for spec in cfg.solvers.values()] == [4, 1, 1]
+    assert cfg.solver_cpus == 6

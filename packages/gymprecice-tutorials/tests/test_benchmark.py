@@ -158,9 +158,9 @@ def test_figures_are_written(bench) -> None:
 
 
 def test_the_flap_is_benchmarked_on_its_own_objective(tmp_path) -> None:
-    """An env without a drag floor or a default feedback signal (the heated plate, the other,
-    has no test double): every seed from each of its three held-out gusts, scored by the
-    flap's mean tip displacement, against the open-loop baselines."""
+    """An env without a drag floor or a feedback law: every seed from each of its three
+    held-out gusts, scored by the flap's mean tip displacement, against the open-loop
+    baselines."""
     env, objective, starts = "perpendicular-flap-fast", "mean_tip_displacement", 3
     out = tmp_path / "run"
     argv = [
@@ -197,6 +197,60 @@ def test_the_flap_is_benchmarked_on_its_own_objective(tmp_path) -> None:
     sweep = json.loads((out / "baselines" / "manifest.json").read_text())
     assert sweep["settings"]["centre"] == 0.875
     assert results["controllers"][3]["label"].startswith("best sinusoid: sine-c0.875-")
+
+
+def test_the_heated_plate_is_benchmarked_against_its_own_feedback_law(tmp_path) -> None:
+    """An env that names its classical feedback (the plate's PID heater): the baselines'
+    feedback is the best point of that law's grid, recorded in benchmark.json, run on the
+    same held-out starts as every policy."""
+    out = tmp_path / "run"
+    argv = [
+        "heated-plate-fast",
+        *TINY_TRAINING,
+        "--constants",
+        "2",
+        "--amplitudes",
+        "0.5",
+        "--frequencies",
+        "0.5",
+        "--feedback-grid",
+        "kp=3;ki=25,50;kd=1",
+    ]
+    assert main(["benchmark", *argv, "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    kinds = [c["kind"] for c in results["controllers"]]
+    assert kinds == ["learned", "uncontrolled", "constant", "sinusoid", "feedback"]
+    pid = results["controllers"][4]
+    assert pid["label"].startswith("best feedback: feedback-pid-kp3-ki")
+    assert np.asarray(pid["metrics"]["objective"]["scores"]).shape == (1, 3)
+    uncontrolled = results["controllers"][1]["metrics"]["objective"]["mean"]["value"]
+    assert pid["metrics"]["objective"]["mean"]["value"] < uncontrolled
+    settings = json.loads((out / "benchmark.json").read_text())["baselines"]
+    assert settings["feedback_grid"] == "kp=3;ki=25,50;kd=1"
+    assert settings["feedback_gains"] == ""
+    sweep = json.loads((out / "baselines" / "sweep.json").read_text())
+    assert [r["label"] for r in sweep["controllers"] if r["kind"] == "feedback"] == [
+        "feedback-pid-kp3-ki25-kd1",
+        "feedback-pid-kp3-ki50-kd1",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("env", "flag", "message"),
+    [
+        ("heated-plate-fast", "--feedback-gains=1", "tune it with --feedback-grid"),
+        ("heated-plate-fast", "--feedback-grid=kp=x", "kp= needs comma-separated finite"),
+        ("jet-cylinder-fast", "--feedback-grid=kp=1", "has no feedback law of its own"),
+    ],
+)
+def test_the_other_kinds_feedback_options_are_refused_before_training(
+    tmp_path, monkeypatch, capsys, env, flag, message
+) -> None:
+    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", env, "--double", flag, "--out", str(tmp_path / "b")])
+    assert message in capsys.readouterr().err + str(exc.value.code)
+    assert not (tmp_path / "b").exists()
 
 
 def test_a_resumed_benchmark_keeps_finished_seeds(bench, monkeypatch, capsys) -> None:

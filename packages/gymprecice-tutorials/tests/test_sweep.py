@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 from gymnasium.spaces import Box
 
+from gymprecice_tutorials.feedback import load_law
+from gymprecice_tutorials.heated_plate.pid import PID_LAW
 from gymprecice_tutorials.sweep import SweepResult, best, constant_controller, parse_grid
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -70,18 +72,88 @@ def test_sweep_runs_every_controller_on_every_start_and_names_the_best(tmp_path:
     assert "best constant" in proc.stdout and "best sinusoid" in proc.stdout
 
 
+@pytest.mark.timeout(300)
+def test_an_env_with_a_feedback_law_of_its_own_is_tuned_over_that_laws_grid(
+    tmp_path: Path,
+) -> None:
+    """The heated plate's classical feedback is a PID heater, not a signal fed back: the
+    sweep runs every point of ``--feedback-grid`` on the held-out starts, and the tuned
+    PID tracks the setpoint far better than the uncontrolled plate or any open loop."""
+    proc = _cli(
+        tmp_path,
+        "heated-plate",
+        "--double",
+        "--constants",
+        "2",
+        "--amplitudes",
+        "0.5",
+        "--frequencies",
+        "0.5",
+        "--feedback-grid",
+        "kp=3;ki=25,50",
+        "--out",
+        "sweep",
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    out = tmp_path / "sweep"
+    with (out / "sweep.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    pid = [r for r in rows if r["kind"] == "feedback"]
+    # kd keeps the law's documented values (0 and 1)
+    assert [r["label"] for r in pid] == [
+        "feedback-pid-kp3-ki25-kd0",
+        "feedback-pid-kp3-ki25-kd1",
+        "feedback-pid-kp3-ki50-kd0",
+        "feedback-pid-kp3-ki50-kd1",
+    ]
+    assert [(float(r["kp"]), float(r["ki"]), float(r["kd"])) for r in pid][1] == (3, 25, 1)
+    summary = json.loads((out / "sweep.json").read_text())
+    best_pid = summary["best_feedback"]
+    assert best_pid["label"] == min(pid, key=lambda r: float(r["mean"]))["label"]
+    others = [r for r in rows if r["kind"] != "feedback"]
+    assert best_pid["mean"] < 0.5 * min(float(r["mean"]) for r in others), rows
+    manifest = json.loads((out / "manifest.json").read_text())["settings"]
+    assert manifest["feedback_law"] == "gymprecice_tutorials.heated_plate.pid:PID_LAW"
+    assert len(manifest["feedback_grid"]) == 4
+
+
 @pytest.mark.parametrize(
-    ("flag", "value", "message"),
+    ("env", "flag", "value", "message"),
     [
-        ("--amplitudes", "0.5,x", "--amplitudes takes comma-separated numbers"),
-        ("--frequencies", "0,1", "--frequencies must be positive"),
-        ("--amplitudes", ",", "--amplitudes needs at least one finite number"),
+        ("quickstart", "--amplitudes", "0.5,x", "--amplitudes takes comma-separated numbers"),
+        ("quickstart", "--frequencies", "0,1", "--frequencies must be positive"),
+        ("quickstart", "--amplitudes", ",", "--amplitudes needs at least one finite number"),
+        ("quickstart", "--feedback-grid", "kp=1", "has no feedback law of its own"),
+        ("heated-plate", "--feedback-gains", "1", "tune it with --feedback-grid"),
+        ("heated-plate", "--feedback-grid", "kx=1", "parameters (kp, ki, kd); got 'kx=1'"),
+        ("heated-plate", "--feedback-grid", "ki=5,y", "ki= needs comma-separated finite"),
     ],
 )
-def test_bad_grids_are_refused_naming_the_flag(tmp_path: Path, flag, value, message) -> None:
-    proc = _cli(tmp_path, "quickstart", "--double", flag, value, "--out", "sweep")
+def test_bad_grids_are_refused_naming_the_flag(tmp_path: Path, env, flag, value, message) -> None:
+    proc = _cli(tmp_path, env, "--double", f"{flag}={value}", "--out", "sweep")
     assert proc.returncode != 0 and message in proc.stderr, proc.stderr
     assert not (tmp_path / "sweep").exists()
+
+
+def test_a_feedback_law_parses_its_grid_and_names_its_points() -> None:
+    law = PID_LAW
+    assert law.parameters == ("kp", "ki", "kd")
+    assert len(law.points(law.default_grid())) == 40  # the documented tuning sweep
+    grid = law.parse_grid("kp=2, 3; ki=50 kd=1")
+    assert grid == {"kp": [2.0, 3.0], "ki": [50.0], "kd": [1.0]}
+    assert law.points(grid) == [
+        {"kp": 2.0, "ki": 50.0, "kd": 1.0},
+        {"kp": 3.0, "ki": 50.0, "kd": 1.0},
+    ]
+    assert law.label({"kp": 3.0, "ki": 50.0, "kd": 1.0}) == "pid-kp3-ki50-kd1"
+    assert law.parse_grid(law.grid_text(grid)) == grid
+    assert load_law("gymprecice_tutorials.heated_plate.pid:PID_LAW") is law
+    with pytest.raises(TypeError, match="not a FeedbackLaw"):
+        load_law("gymprecice_tutorials.heated_plate.pid:PIDController")
+    heater = law.build(Box(300.0, 340.0, shape=(1,)), {"kp": 3, "ki": 0, "kd": 0})
+    assert heater(np.array([1.0, 0.0, 0.0, 0.0]), 0.0)[0] == pytest.approx(307.0)
+    with pytest.raises(ValueError, match="heater's range"):
+        law.build(Box(-1.0, 1.0, shape=(1,)), {"kp": 3, "ki": 0, "kd": 0})
 
 
 def test_parse_grid_and_constant_controller() -> None:

@@ -124,6 +124,11 @@ class SolverSpec:
     participant: str | None
     options: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def cpus(self) -> int:
+        """Processes the solver runs: its ``np`` option, 1 when unset (a serial run)."""
+        return max(1, int(self.options.get("np", 1) or 1))
+
 
 @dataclass(frozen=True)
 class InterfaceSpec:
@@ -176,6 +181,11 @@ class GymPreciceConfig:
         from gymprecice.solver import LIBRARY_ENV_VAR
 
         return os.environ.get(LIBRARY_ENV_VAR) or self.model.precice.library
+
+    @property
+    def solver_cpus(self) -> int:
+        """CPUs one env's solvers use at once: what a scheduler must reserve for it."""
+        return sum(spec.cpus for spec in self.solvers.values())
 
     def where(self) -> str:
         return str(self.file) if self.file else f"<config dict for {self.case_dir}>"

@@ -19,7 +19,8 @@ docs/benchmark.md on one environment, reusing the other commands for each piece:
 3. **baselines** on the same starts (``gymprecice sweep`` into ``<out>/baselines``): the
    uncontrolled flow, the best constant, the best open-loop sinusoid of an amplitude x
    frequency grid and the best classical feedback law of a gain x delay grid
-   (:mod:`gymprecice_tutorials.feedback`), each chosen by its mean objective;
+   (:mod:`gymprecice_tutorials.feedback`) or, for an env with a law of its own (the heated
+   plate's PID), of that law's grid, each chosen by its mean objective;
 4. **aggregate** per controller the mean and the interquartile mean of the objective (and
    of the mean Cd where the env reports it), each with a 95 % stratified-bootstrap interval
    (:mod:`gymprecice_tutorials.benchmark_stats`), into ``results.md``, ``results.csv`` and
@@ -155,6 +156,43 @@ def _check_baselines_fit(space: gym.Space) -> None:
         )
 
 
+#: the lift feedback's gains where ``--feedback-gains`` is not given (an env whose
+#: classical feedback is a signal fed back, as the cylinders' lift)
+DEFAULT_FEEDBACK_GAINS = "-2,-1,1,2"
+
+
+def _resolve_feedback(args: argparse.Namespace, env: TutorialEnv) -> None:
+    """Fill in the feedback baseline's defaults in ``args``: the lift's gains for an env
+    fed back a signal; the documented grid of the env's own law (``--feedback-grid``, made
+    explicit so that ``benchmark.json`` records every point) for one that names a law.
+    The other kind's options are refused rather than ignored."""
+    if env.feedback_law is None:
+        if args.feedback_grid:
+            raise BenchmarkError(
+                f"{env.name} has no feedback law of its own for --feedback-grid; its "
+                "classical feedback is a signal fed back: --feedback-gains and "
+                "--feedback-delays"
+            )
+        if args.feedback_gains is None:
+            args.feedback_gains = DEFAULT_FEEDBACK_GAINS
+        return
+    from gymprecice_tutorials.feedback import load_law
+
+    law = load_law(env.feedback_law)
+    if args.feedback_gains:
+        raise BenchmarkError(
+            f"{env.name}'s classical feedback is its {law.name} law "
+            f"({', '.join(law.parameters)}), not a signal fed back: tune it with "
+            "--feedback-grid (default: its documented grid) instead of --feedback-gains"
+        )
+    args.feedback_gains = ""
+    if args.feedback_grid != "":
+        try:
+            args.feedback_grid = law.grid_text(law.parse_grid(args.feedback_grid or ""))
+        except ValueError as exc:
+            raise BenchmarkError(str(exc)) from None
+
+
 def _check_grids(args: argparse.Namespace, env: TutorialEnv) -> None:
     """The sweep's grids, checked now rather than after every seed has trained."""
     from gymprecice_tutorials.sweep import parse_grid
@@ -252,6 +290,8 @@ def _settings(args: argparse.Namespace, env: TutorialEnv, algos: list[str], extr
             "feedback_gains": args.feedback_gains,
             "feedback_delays": args.feedback_delays,
             "feedback_signal": args.feedback_signal,
+            # only where the env has a law: a benchmark.json written before resumes
+            **({"feedback_grid": args.feedback_grid} if env.feedback_law else {}),
         },
         "bootstrap_reps": args.bootstrap_reps,
     }
@@ -415,10 +455,10 @@ def _worker_train_seed(argv: list[str], run: str, label: str, retries: int) -> i
 
 
 def _solver_cpus(env: gym.Env) -> float:
-    """CPUs the solvers of one env use: the sum of their ``np`` options (1 each)."""
+    """CPUs the solvers of one env use (:attr:`GymPreciceConfig.solver_cpus`; 1 for an env
+    without a configuration, such as a test double)."""
     config = getattr(env.unwrapped, "config", None)
-    solvers = getattr(config, "solvers", None) or {}
-    return float(sum(max(1, int(s.options.get("np", 1) or 1)) for s in solvers.values()) or 1)
+    return float(getattr(config, "solver_cpus", 0) or 1)
 
 
 def _sweep_cpus(args: argparse.Namespace, env_cpus: float) -> float:
@@ -673,6 +713,7 @@ def benchmark_command(args: argparse.Namespace) -> int:
     algos = parse_algorithms(args.algo)
     extra = parse_train_args(args.train_args, algos)
     out = (args.out or default_out(env, "benchmark")).resolve()
+    _resolve_feedback(args, env)
 
     # -- everything that can be refused is refused before anything trains
     if not args.double:
@@ -796,6 +837,8 @@ def benchmark_command(args: argparse.Namespace) -> int:
             ]
             if args.feedback_signal:
                 argv.append(f"--feedback-signal={args.feedback_signal}")
+            if env.feedback_law:
+                argv.append(f"--feedback-grid={args.feedback_grid}")
             sweep = RemoteCommand(
                 argv, sweep_dir, "the baselines' sweep", cpus=_sweep_cpus(args, env_cpus)
             )

@@ -414,6 +414,7 @@ def _rollout_parsers(sub: Any) -> None:
         default=None,
         help="the info['metrics'] entry fed back (None: Cl for the cylinders)",
     )
+    _feedback_grid_option(p)
     p.add_argument(
         "--episodes", type=_positive_int, default=3, help="held-out starts per controller"
     )
@@ -480,6 +481,17 @@ def _workers_option(p: argparse.ArgumentParser, what: str) -> None:
         type=_positive_int,
         default=1,
         help=f"{what} (a solver runs on one core: at most the machine's cores)",
+    )
+
+
+def _feedback_grid_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--feedback-grid",
+        default=None,
+        metavar="NAME=V1,V2;...",
+        help="for an env with a feedback law of its own (the heated plate's PID: kp, ki, kd), "
+        "the values of its parameters to tune, e.g. 'kp=2,3;ki=25,50;kd=0' (unnamed "
+        "parameters keep the law's documented grid; default: that grid; empty: none)",
     )
 
 
@@ -574,8 +586,9 @@ def _benchmark_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--feedback-gains",
-        default="-2,-1,1,2",
-        help="feedback gains to sweep (empty: no feedback baseline)",
+        default=None,
+        help="feedback gains to sweep (default: -2,-1,1,2 where the feedback is a signal fed "
+        "back, none for an env with a feedback law of its own; empty: no feedback baseline)",
     )
     p.add_argument(
         "--feedback-delays",
@@ -587,6 +600,7 @@ def _benchmark_parser(sub: Any) -> None:
         default=None,
         help="the info['metrics'] entry fed back (None: Cl for the cylinders)",
     )
+    _feedback_grid_option(p)
     p.add_argument("--bootstrap-reps", type=_positive_int, default=2000, help="bootstrap resamples")
     _workers_option(p, "evaluations and baseline rollouts run at once, each on its own core")
     p.add_argument("--fresh", action="store_true", help="start over, deleting the benchmark's runs")

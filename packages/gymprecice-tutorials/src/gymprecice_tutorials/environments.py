@@ -78,6 +78,10 @@ class TutorialEnv:
     #: the drag floor that ``evaluate`` and ``benchmark`` measure a cylinder controller
     #: against (``None``: not measured for this env)
     drag_floor: DragFloor | None = None
+    #: ``"module:attribute"`` of the env's own classical feedback family
+    #: (:class:`~gymprecice_tutorials.feedback.FeedbackLaw`), which ``sweep`` and
+    #: ``benchmark`` tune instead of the lift fed back (``None``: the lift's law)
+    feedback_law: str | None = None
 
 
 ENVIRONMENTS: dict[str, TutorialEnv] = {
@@ -160,7 +164,6 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "gymprecice_tutorials.heated_plate.environment:HeatedPlateEnv",
             "conjugate heat transfer: hold the plate's interface temperature with a heater "
             "(OpenFOAM fluid; OpenFOAM or FEniCS plate)",
-            double=False,
             shipped_policy="heated-plate-fast",
             recipe=False,
             open_loop_frequency=0.5,
@@ -171,6 +174,7 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             baseline_kwargs=(("uncontrolled", True),),
             held_out_starts=True,
             feedback_signal=None,
+            feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
         ),
         TutorialEnv(
             "heated-plate-fast",
@@ -178,7 +182,6 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             "gymprecice_tutorials.heated_plate.fast:HeatedPlateFastEnv",
             "the heated plate's training case: a coarser fluid and explicit coupling, "
             "3.5 s an episode (the task and starts of heated-plate)",
-            double=False,
             recipe=False,
             open_loop_frequency=0.5,
             rollout_time=None,
@@ -188,6 +191,7 @@ ENVIRONMENTS: dict[str, TutorialEnv] = {
             baseline_kwargs=(("uncontrolled", True),),
             held_out_starts=True,
             feedback_signal=None,
+            feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
         ),
     )
 }

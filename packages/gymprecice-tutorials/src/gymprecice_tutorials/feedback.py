@@ -18,17 +18,32 @@ signal of actions already taken, never the coming one.
 ``gymprecice feedback ENV --gain G --delay D`` runs one law; ``gymprecice sweep ENV
 --feedback-gains ... --feedback-delays ...`` tunes it on the held-out starts beside the
 open-loop forcings.
+
+Not every task's textbook controller is the lift fed back. An env names its own family
+of classical controllers as a :class:`FeedbackLaw` (``TutorialEnv.feedback_law``: the
+heated plate's PID heater, :data:`gymprecice_tutorials.heated_plate.pid.PID_LAW`), with
+the grid of its documented tuning; ``gymprecice sweep`` and ``benchmark`` then tune that
+family instead, over ``--feedback-grid "kp=2,3;ki=25,50"`` or the law's own grid.
 """
 
 from __future__ import annotations
 
+import importlib
+import itertools
+import math
+import re
 from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-__all__ = ["FeedbackController"]
+__all__ = ["FeedbackController", "FeedbackLaw", "load_law"]
+
+#: a grid of a law's parameters: each name with the values to try, in the law's order
+Grid = dict[str, list[float]]
 
 
 class FeedbackController:
@@ -77,3 +92,79 @@ class FeedbackController:
     def __call__(self, obs: Any, t: float) -> np.ndarray:
         value = self.centre - self.gain * self.half * self._past[0]
         return np.clip(value, self.space.low, self.space.high).astype(self.space.dtype)
+
+
+@dataclass(frozen=True)
+class FeedbackLaw:
+    """A family of classical feedback controllers that an env names as its textbook one.
+
+    ``build(space, settings)`` returns a controller for one point of the family: called
+    as ``controller(obs, t)`` with the env's own observation (never normalised) and
+    returning an action in its own units, with optional ``reset()`` at each episode's
+    start and ``observe(info)`` after each step, as :func:`~gymprecice_tutorials.evaluate.rollout`
+    drives every controller. ``grid`` is the documented tuning sweep's grid, the default
+    of ``--feedback-grid``.
+    """
+
+    name: str
+    summary: str
+    grid: tuple[tuple[str, tuple[float, ...]], ...]
+    build: Callable[[gym.Space, Mapping[str, float]], Any]
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        return tuple(name for name, _ in self.grid)
+
+    def default_grid(self) -> Grid:
+        return {name: [float(v) for v in values] for name, values in self.grid}
+
+    def parse_grid(self, text: str) -> Grid:
+        """``"kp=2,3;ki=25,50"`` -> the law's grid with those values (others: defaults).
+
+        Assignments are separated by ``;`` or spaces; an unknown parameter, a missing
+        ``=`` or a value that is not a finite number is an error naming the law's
+        parameters."""
+        grid = self.default_grid()
+        tight = re.sub(r"\s*([=,])\s*", r"\1", text)  # "kp = 2, 3" is "kp=2,3"
+        for item in tight.replace(";", " ").split():
+            name, sep, values = item.partition("=")
+            if not sep or name not in grid:
+                raise ValueError(
+                    f"--feedback-grid takes NAME=V1,V2,... for the {self.name} law's "
+                    f"parameters ({', '.join(self.parameters)}); got {item!r}"
+                )
+            try:
+                numbers = [float(v) for v in values.split(",") if v.strip()]
+            except ValueError:
+                numbers = []
+            if not numbers or not all(math.isfinite(v) for v in numbers):
+                raise ValueError(
+                    f"--feedback-grid {name}= needs comma-separated finite numbers, got {values!r}"
+                )
+            grid[name] = numbers
+        return grid
+
+    def grid_text(self, grid: Grid) -> str:
+        """``grid`` as ``--feedback-grid`` takes it, every parameter named."""
+        return ";".join(f"{n}={','.join(f'{v:g}' for v in grid[n])}" for n in self.parameters)
+
+    def points(self, grid: Grid) -> list[dict[str, float]]:
+        """Every combination of the grid's values, the last parameter varying fastest."""
+        names = self.parameters
+        return [
+            dict(zip(names, values, strict=True))
+            for values in itertools.product(*(grid[n] for n in names))
+        ]
+
+    def label(self, settings: Mapping[str, float]) -> str:
+        """``pid-kp3-ki50-kd1``: one point of the family, as tables and run dirs name it."""
+        return "-".join([self.name, *(f"{n}{settings[n]:g}" for n in self.parameters)])
+
+
+def load_law(spec: str) -> FeedbackLaw:
+    """The :class:`FeedbackLaw` at ``"module:attribute"`` (``TutorialEnv.feedback_law``)."""
+    module, _, attribute = spec.partition(":")
+    law = getattr(importlib.import_module(module), attribute)
+    if not isinstance(law, FeedbackLaw):
+        raise TypeError(f"{spec} is not a FeedbackLaw but {type(law).__name__}")
+    return law

@@ -11,7 +11,8 @@ writes, under ``--out``:
 * ``sweep.csv`` and ``sweep.json``: per controller the objective on every start, its mean,
   its standard deviation and its spread (max - min) over the starts; the best constant,
   the best sinusoid and, with ``--feedback-gains``, the best classical feedback law
-  (:mod:`gymprecice_tutorials.feedback`: a gain x delay grid);
+  (:mod:`gymprecice_tutorials.feedback`: a gain x delay grid), or for an env that names
+  its own law (the heated plate's PID) the best point of ``--feedback-grid``;
 * ``sweep.png``: the objective against the constant action and the sinusoids' grid.
 
 The objective is the environment's (``TutorialEnv.objective``, lower is better; for the flap
@@ -48,7 +49,7 @@ from gymprecice_tutorials.evaluate import (
     sine_controller,
     zero_controller,
 )
-from gymprecice_tutorials.feedback import FeedbackController
+from gymprecice_tutorials.feedback import FeedbackController, FeedbackLaw, load_law
 from gymprecice_tutorials.manifest import write_manifest
 from gymprecice_tutorials.requirements import require_solvers
 from gymprecice_tutorials.train import build_env_kwargs, default_out
@@ -141,9 +142,12 @@ def sweep_jobs(
     gains: Sequence[float],
     delays: Sequence[int],
     signal: str | None,
+    law: FeedbackLaw | None = None,
+    law_points: Sequence[dict[str, float]] = (),
 ) -> list[SweepJob]:
     """Every controller of the sweep, in the order of its table (``box``: the action's
-    low and high on its first dimension, for the constants' labels)."""
+    low and high on its first dimension, for the constants' labels; ``law_points``: the
+    points of the env's own feedback law to run)."""
     low, high = box
     jobs = [SweepJob("uncontrolled", "uncontrolled", {})]
     for k in range(constants):
@@ -168,10 +172,15 @@ def sweep_jobs(
                     {"gain": gain, "delay": delay},
                 )
             )
+    if law is not None:
+        for point in law_points:
+            jobs.append(SweepJob(f"feedback-{law.label(point)}", "feedback", dict(point)))
     return jobs
 
 
-def _controller_of(job: SweepJob, space: gym.Space, signal: str | None) -> Any:
+def _controller_of(
+    job: SweepJob, space: gym.Space, signal: str | None, law: FeedbackLaw | None = None
+) -> Any:
     if job.kind == "uncontrolled":
         return zero_controller(space)
     if job.kind == "constant":
@@ -179,6 +188,8 @@ def _controller_of(job: SweepJob, space: gym.Space, signal: str | None) -> Any:
     if job.kind == "sinusoid":
         s = job.settings
         return sine_controller(space, s["amplitude"], s["frequency"], centre=s["centre"])
+    if law is not None:
+        return law.build(space, job.settings)
     return FeedbackController(space, str(signal), job.settings["gain"], int(job.settings["delay"]))
 
 
@@ -186,6 +197,7 @@ def run_jobs(spec: dict[str, Any], jobs: Sequence[SweepJob], index: int) -> None
     """Run ``jobs`` one after the other on env ``index`` (its own run directory), each
     into ``<out>/<label>``. Module-level, so that a worker process can run its share."""
     env_info = find_environment(spec["env"])
+    law = load_law(spec["law"]) if spec.get("law") else None
     out = Path(spec["out"])
     env: gym.Env | None = None
     env_uncontrolled: bool | None = None
@@ -201,7 +213,7 @@ def run_jobs(spec: dict[str, Any], jobs: Sequence[SweepJob], index: int) -> None
                     kwargs.update(dict(env_info.baseline_kwargs))
                 env = make_env_checked(env_info.name, env_info.env_id, index, kwargs, rescale=False)
                 env_uncontrolled = uncontrolled
-            controller = _controller_of(job, env.action_space, spec["signal"])
+            controller = _controller_of(job, env.action_space, spec["signal"], law)
             summary = rollout(
                 env,
                 controller,
@@ -287,6 +299,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     delays = [int(d) for d in parse_grid(args.feedback_delays, "feedback-delays")]
     if any(d < 0 for d in delays):
         raise SystemExit("gymprecice sweep: --feedback-delays are whole numbers of actions >= 0")
+    law, law_points = _law_points(args, env_info)
     signal = args.feedback_signal or env_info.feedback_signal
     if gains and signal is None:
         raise SystemExit(
@@ -312,7 +325,16 @@ def sweep_command(args: argparse.Namespace) -> int:
         )
     box = (float(np.ravel(space.low)[0]), float(np.ravel(space.high)[0]))
     jobs = sweep_jobs(
-        box, args.constants, args.centre, amplitudes, frequencies, gains, delays, signal
+        box,
+        args.constants,
+        args.centre,
+        amplitudes,
+        frequencies,
+        gains,
+        delays,
+        signal,
+        law,
+        law_points,
     )
     # what every rollout depends on: a rerun that agrees keeps the controllers it finished
     identity = {
@@ -321,6 +343,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         "episodes": args.episodes,
         "seed": args.seed,
         "feedback_signal": signal if gains else None,
+        "feedback_law": env_info.feedback_law if law_points else None,
     }
     resumable = _same_rollouts(out, identity)
     write_manifest(
@@ -336,6 +359,7 @@ def sweep_command(args: argparse.Namespace) -> int:
             "frequencies": frequencies,
             "feedback_gains": gains,
             "feedback_delays": delays if gains else [],
+            "feedback_grid": [dict(p) for p in law_points],
         },
     )
     todo = [j for j in jobs if not (resumable and _finished(out, j, args.episodes))]
@@ -361,6 +385,7 @@ def sweep_command(args: argparse.Namespace) -> int:
             "episodes": args.episodes,
             "seed": args.seed,
             "signal": signal,
+            "law": env_info.feedback_law if law_points else None,
         }
         _run_workers(spec, todo, workers)
         failed = [j.label for j in todo if not _finished(out, j, args.episodes)]
@@ -385,6 +410,38 @@ def sweep_command(args: argparse.Namespace) -> int:
         )
     _write(out, results)
     return 0
+
+
+def _law_points(
+    args: argparse.Namespace, env_info: TutorialEnv
+) -> tuple[FeedbackLaw | None, list[dict[str, float]]]:
+    """The env's own feedback law and the points of it to run: ``--feedback-grid``, else
+    the law's documented grid; ``--feedback-grid ''``: none. An env without a law of its
+    own takes the lift's ``--feedback-gains`` instead, and the other way round."""
+    grid_text = getattr(args, "feedback_grid", None)
+    if env_info.feedback_law is None:
+        if grid_text:
+            raise SystemExit(
+                f"gymprecice sweep: {env_info.name} has no feedback law of its own for "
+                "--feedback-grid; its classical feedback is the signal fed back: "
+                "--feedback-gains and --feedback-delays"
+            )
+        return None, []
+    law = load_law(env_info.feedback_law)
+    if args.feedback_gains:
+        raise SystemExit(
+            f"gymprecice sweep: {env_info.name}'s classical feedback is its {law.name} law "
+            f"({', '.join(law.parameters)}), not a signal fed back: tune it with "
+            f'--feedback-grid "{law.grid_text(law.default_grid())}" instead of '
+            "--feedback-gains"
+        )
+    if grid_text == "":
+        return law, []
+    try:
+        grid = law.parse_grid(grid_text or "")
+    except ValueError as exc:
+        raise SystemExit(f"gymprecice sweep: {exc}") from None
+    return law, law.points(grid)
 
 
 def best(results: Sequence[SweepResult], kind: str) -> SweepResult | None:

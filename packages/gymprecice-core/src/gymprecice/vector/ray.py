@@ -71,7 +71,7 @@ def solver_cpus(env_fn: Callable[..., Any]) -> int | None:
 
     for value in (*env_fn.args, *env_fn.keywords.values()):
         if isinstance(value, GymPreciceConfig):
-            return sum(max(1, int(s.options.get("np", 1) or 1)) for s in value.solvers.values())
+            return value.solver_cpus
     return None
 
 

@@ -25,13 +25,14 @@ import argparse
 import itertools
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from gymprecice_tutorials.feedback import FeedbackLaw
 from gymprecice_tutorials.heated_plate.environment import (
     ACTION_TIME,
     EVAL_STARTS,
@@ -40,7 +41,7 @@ from gymprecice_tutorials.heated_plate.environment import (
     HeatedPlateEnv,
 )
 
-__all__ = ["PIDController", "Rollout", "plot", "rollout", "sweep"]
+__all__ = ["PID_LAW", "PIDController", "Rollout", "plot", "rollout", "sweep"]
 
 
 @dataclass
@@ -55,12 +56,35 @@ class PIDController:
     def reset(self) -> None:
         self.integral = 0.0
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
+    def __call__(self, obs: np.ndarray, t: float | None = None) -> np.ndarray:
+        """The heater for observation ``obs`` (``t``, the time, is not used: a PID sees
+        only the error, as ``gymprecice sweep`` calls every controller with both)."""
         error, change = float(obs[0]), float(obs[1])
         low, high = (h - REFERENCE_HEATER for h in HEATER_RANGE)
         self.integral = float(np.clip(self.integral - self.ki * error * ACTION_TIME, low, high))
         heater = REFERENCE_HEATER - self.kp * error - self.kd * change + self.integral
         return np.array([np.clip(heater, *HEATER_RANGE)], dtype=np.float32)
+
+
+def _pid_for(space: Any, settings: Mapping[str, float]) -> PIDController:
+    """One PID of the law, for an env acting on the heater in kelvin (its own units)."""
+    low, high = (float(np.ravel(b)[0]) for b in (space.low, space.high))
+    if (low, high) != HEATER_RANGE:
+        raise ValueError(
+            f"the PID heater acts on the heater's range {HEATER_RANGE} K, the env's action "
+            f"box is ({low:g}, {high:g}): run it on the env's own action space"
+        )
+    return PIDController(settings["kp"], settings["ki"], settings.get("kd", 0.0))
+
+
+#: the heated plate's classical baseline for ``gymprecice sweep`` and ``benchmark``: the
+#: grid of the tuning sweep in docs/training.md (40 gains; its best: kp 3, ki 50, kd 1)
+PID_LAW = FeedbackLaw(
+    "pid",
+    "heater = 310 K - kp e - kd de + I, I <- clip(I - ki e dt)",
+    (("kp", (2, 3, 4, 6)), ("ki", (25, 50, 75, 100, 150)), ("kd", (0, 1))),
+    _pid_for,
+)
 
 
 @dataclass
