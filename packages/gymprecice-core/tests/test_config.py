@@ -213,7 +213,6 @@ def test_a_kind_of_a_plugin_that_failed_to_load_shows_its_import_error(case_dir:
     assert "ModuleNotFoundError: numba" in message and "pip install" not in message
 
 
-
 def test_solver_cpus_adds_up_each_solvers_np_one_when_unset(case_dir: Path) -> None:
     cfg = load_config(case_dir)
     assert cfg.solver_cpus == 1  # one serial solver

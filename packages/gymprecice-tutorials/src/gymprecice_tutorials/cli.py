@@ -336,7 +336,9 @@ def _rollout_parsers(sub: Any) -> None:
         description="Feed one of the env's step metrics (the cylinders' lift Cl) back to "
         "the actuator: a = clip(centre - gain * half_range * signal(t - delay actions)), "
         "the textbook first controller a learned one should beat; same files as evaluate. "
-        "`gymprecice sweep --feedback-gains ... --feedback-delays ...` tunes it.",
+        "`gymprecice sweep --feedback-gains ... --feedback-delays ...` tunes it. An env "
+        "with a feedback law of its own (the heated plate's PID heater) runs one point of "
+        "it instead: --law 'kp=3;ki=50;kd=1'.",
     )
     _env_options(p, rollout=True)
     p.add_argument(
@@ -361,6 +363,14 @@ def _rollout_parsers(sub: Any) -> None:
         type=float,
         default=0.5,
         help="the action without signal as a fraction of the action box (0.5: its middle)",
+    )
+    p.add_argument(
+        "--law",
+        default=None,
+        metavar="NAME=V;...",
+        help="for an env with a feedback law of its own (the heated plate's PID), one value "
+        "of each of its parameters, e.g. 'kp=3;ki=50;kd=1' (instead of --signal, --gain, "
+        "--delay)",
     )
     p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to run")
     _all_starts_option(p)

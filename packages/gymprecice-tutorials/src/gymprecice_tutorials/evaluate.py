@@ -61,7 +61,7 @@ from gymprecice_tutorials.envs import (
     make_env_checked,
     vecnormalize_path,
 )
-from gymprecice_tutorials.feedback import FeedbackController
+from gymprecice_tutorials.feedback import FeedbackController, FeedbackLaw, load_law
 from gymprecice_tutorials.manifest import file_sha256, read_manifest, write_manifest
 from gymprecice_tutorials.requirements import require_solvers
 from gymprecice_tutorials.shipped_policies import (
@@ -122,6 +122,38 @@ def sine_controller(
         return np.clip(value, space.low, space.high).astype(space.dtype)
 
     return act
+
+
+def law_point(
+    env_info: TutorialEnv, text: str | None
+) -> tuple[FeedbackLaw, dict[str, float]] | None:
+    """``gymprecice feedback --law "kp=3;ki=50;kd=1"``: the env's own feedback law and the
+    one point of it to run (``None``: the env's feedback is a signal fed back). Checked
+    before any env is built; a ``ValueError`` says what is missing."""
+    if env_info.feedback_law is None:
+        if text:
+            raise ValueError(
+                f"{env_info.name} has no feedback law of its own for --law; its classical "
+                "feedback is a signal fed back (--signal, --gain, --delay)"
+            )
+        return None
+    law = load_law(env_info.feedback_law)
+    example = law.grid_text({n: [v[0]] for n, v in law.default_grid().items()})
+    if not text:
+        raise ValueError(
+            f"{env_info.name}'s classical feedback is its {law.name} law ({law.summary}); "
+            f'pass --law with one value of each parameter, e.g. --law "{example}" '
+            f"(`gymprecice sweep {env_info.name}` tunes it)"
+        )
+    grid = law.parse_grid(text)
+    several = [n for n in law.parameters if len(grid[n]) != 1]
+    if several:
+        raise ValueError(
+            f"--law runs one {law.name} controller: give {', '.join(several)} one value "
+            f'each, e.g. --law "{example}" (`gymprecice sweep` tunes a grid)'
+        )
+    (point,) = law.points(grid)
+    return law, point
 
 
 def rollout(
@@ -390,6 +422,18 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
         status = require_solvers(env_info, command, verbose=args.require_solvers)
         if status:
             return status
+    try:
+        own_law = law_point(env_info, getattr(args, "law", None)) if command == "feedback" else None
+    except ValueError as exc:
+        print(f"gymprecice {command}: {exc}", file=sys.stderr)
+        return 2
+    if command == "feedback" and own_law is None and not (args.signal or env_info.feedback_signal):
+        print(
+            f"gymprecice feedback: {env_info.name} has no default signal; pass --signal "
+            "NAME (one of the metrics its steps report in info['metrics'])",
+            file=sys.stderr,
+        )
+        return 2
     # The policy acts in [-1, 1] (training rescales); the fixed controllers act in the
     # env's own units, so that "zero" means jets closed.
     # the robustness wrappers' noise is seeded by each episode's reset seed
@@ -454,15 +498,16 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
             )
         elif command == "baseline":
             controller = zero_controller(env.action_space)
-        elif command == "feedback":
-            signal = args.signal or env_info.feedback_signal
-            if signal is None:
-                print(
-                    f"gymprecice feedback: {env_info.name} has no default signal; pass --signal "
-                    "NAME (one of the metrics its steps report in info['metrics'])",
-                    file=sys.stderr,
-                )
+        elif command == "feedback" and own_law is not None:
+            law, point = own_law
+            try:
+                controller = law.build(env.action_space, point)
+            except ValueError as exc:
+                print(f"gymprecice feedback: {exc}", file=sys.stderr)
                 return 2
+            settings.update({"law": env_info.feedback_law, **point})
+        elif command == "feedback":
+            signal = str(args.signal or env_info.feedback_signal)
             try:
                 feedback = FeedbackController(
                     env.action_space, signal, args.gain, args.delay, args.centre
