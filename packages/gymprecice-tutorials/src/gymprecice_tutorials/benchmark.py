@@ -163,34 +163,23 @@ DEFAULT_FEEDBACK_GAINS = "-2,-1,1,2"
 
 def _resolve_feedback(args: argparse.Namespace, env: TutorialEnv) -> None:
     """Fill in the feedback baseline's defaults in ``args``: the lift's gains for an env
-    fed back a signal; the documented grid of the env's own law (``--feedback-grid``, made
-    explicit so that ``benchmark.json`` records every point) for one that names a law.
-    The other kind's options are refused rather than ignored."""
-    if env.feedback_law is None:
-        if args.feedback_grid:
-            raise BenchmarkError(
-                f"{env.name} has no feedback law of its own for --feedback-grid; its "
-                "classical feedback is a signal fed back: --feedback-gains and "
-                "--feedback-delays"
-            )
+    fed back a signal; the grid of the env's own law (``--feedback-grid``, its documented
+    grid unless given, written out so that ``benchmark.json`` records every point) for one
+    that names a law. The other kind's options are refused rather than ignored."""
+    from gymprecice_tutorials.feedback import own_law_grid
+
+    try:
+        law, grid = own_law_grid(
+            env.name, env.feedback_law, args.feedback_gains, args.feedback_grid
+        )
+    except ValueError as exc:
+        raise BenchmarkError(str(exc)) from None
+    if law is None:
         if args.feedback_gains is None:
             args.feedback_gains = DEFAULT_FEEDBACK_GAINS
         return
-    from gymprecice_tutorials.feedback import load_law
-
-    law = load_law(env.feedback_law)
-    if args.feedback_gains:
-        raise BenchmarkError(
-            f"{env.name}'s classical feedback is its {law.name} law "
-            f"({', '.join(law.parameters)}), not a signal fed back: tune it with "
-            "--feedback-grid (default: its documented grid) instead of --feedback-gains"
-        )
     args.feedback_gains = ""
-    if args.feedback_grid != "":
-        try:
-            args.feedback_grid = law.grid_text(law.parse_grid(args.feedback_grid or ""))
-        except ValueError as exc:
-            raise BenchmarkError(str(exc)) from None
+    args.feedback_grid = law.grid_text(grid) if grid is not None else ""
 
 
 def _check_grids(args: argparse.Namespace, env: TutorialEnv) -> None:

@@ -40,7 +40,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-__all__ = ["FeedbackController", "FeedbackLaw", "load_law"]
+__all__ = ["FeedbackController", "FeedbackLaw", "load_law", "own_law_grid"]
 
 #: a grid of a law's parameters: each name with the values to try, in the law's order
 Grid = dict[str, list[float]]
@@ -168,3 +168,32 @@ def load_law(spec: str) -> FeedbackLaw:
     if not isinstance(law, FeedbackLaw):
         raise TypeError(f"{spec} is not a FeedbackLaw but {type(law).__name__}")
     return law
+
+
+def own_law_grid(
+    env_name: str, law_spec: str | None, gains: str | None, grid_text: str | None
+) -> tuple[FeedbackLaw | None, Grid | None]:
+    """The feedback law an env names (``law_spec``) and its grid to tune, from a command's
+    ``--feedback-gains`` and ``--feedback-grid`` (``None``: not given, the law's documented
+    grid; ``""``: no feedback baseline, grid ``None``). An env without a law of its own
+    gives ``(None, None)``: its feedback is a signal fed back. The other kind's option is
+    a ``ValueError`` rather than ignored."""
+    if law_spec is None:
+        if grid_text:
+            raise ValueError(
+                f"{env_name} has no feedback law of its own for --feedback-grid; its "
+                "classical feedback is a signal fed back: --feedback-gains and "
+                "--feedback-delays"
+            )
+        return None, None
+    law = load_law(law_spec)
+    if gains:
+        raise ValueError(
+            f"{env_name}'s classical feedback is its {law.name} law "
+            f"({', '.join(law.parameters)}), not a signal fed back: tune it with "
+            f'--feedback-grid "{law.grid_text(law.default_grid())}" instead of '
+            "--feedback-gains"
+        )
+    if grid_text == "":
+        return law, None
+    return law, law.parse_grid(grid_text or "")

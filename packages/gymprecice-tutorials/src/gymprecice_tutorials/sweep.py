@@ -49,7 +49,12 @@ from gymprecice_tutorials.evaluate import (
     sine_controller,
     zero_controller,
 )
-from gymprecice_tutorials.feedback import FeedbackController, FeedbackLaw, load_law
+from gymprecice_tutorials.feedback import (
+    FeedbackController,
+    FeedbackLaw,
+    load_law,
+    own_law_grid,
+)
 from gymprecice_tutorials.manifest import write_manifest
 from gymprecice_tutorials.requirements import require_solvers
 from gymprecice_tutorials.train import build_env_kwargs, default_out
@@ -415,33 +420,17 @@ def sweep_command(args: argparse.Namespace) -> int:
 def _law_points(
     args: argparse.Namespace, env_info: TutorialEnv
 ) -> tuple[FeedbackLaw | None, list[dict[str, float]]]:
-    """The env's own feedback law and the points of it to run: ``--feedback-grid``, else
-    the law's documented grid; ``--feedback-grid ''``: none. An env without a law of its
-    own takes the lift's ``--feedback-gains`` instead, and the other way round."""
-    grid_text = getattr(args, "feedback_grid", None)
-    if env_info.feedback_law is None:
-        if grid_text:
-            raise SystemExit(
-                f"gymprecice sweep: {env_info.name} has no feedback law of its own for "
-                "--feedback-grid; its classical feedback is the signal fed back: "
-                "--feedback-gains and --feedback-delays"
-            )
-        return None, []
-    law = load_law(env_info.feedback_law)
-    if args.feedback_gains:
-        raise SystemExit(
-            f"gymprecice sweep: {env_info.name}'s classical feedback is its {law.name} law "
-            f"({', '.join(law.parameters)}), not a signal fed back: tune it with "
-            f'--feedback-grid "{law.grid_text(law.default_grid())}" instead of '
-            "--feedback-gains"
-        )
-    if grid_text == "":
-        return law, []
+    """The env's own feedback law and the points of it to run (:func:`own_law_grid`)."""
     try:
-        grid = law.parse_grid(grid_text or "")
+        law, grid = own_law_grid(
+            env_info.name,
+            env_info.feedback_law,
+            args.feedback_gains,
+            getattr(args, "feedback_grid", None),
+        )
     except ValueError as exc:
         raise SystemExit(f"gymprecice sweep: {exc}") from None
-    return law, law.points(grid)
+    return law, law.points(grid) if law is not None and grid is not None else []
 
 
 def best(results: Sequence[SweepResult], kind: str) -> SweepResult | None:
