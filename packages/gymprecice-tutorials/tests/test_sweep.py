@@ -141,6 +141,7 @@ def test_an_env_with_a_feedback_law_of_its_own_is_tuned_over_that_laws_grid(
     [
         ("heated-plate", [], 'pass --law with one value of each parameter, e.g. --law "kp=2;'),
         ("heated-plate", ["--law", "kp=3,4"], "give kp, ki, kd one value each"),
+        ("heated-plate", ["--law", "kx=3"], "--law takes NAME=V1,V2,... for the pid law's"),
         ("quickstart", ["--law", "kp=3"], "quickstart has no feedback law of its own"),
         ("perpendicular-flap-fast", [], "has no default signal; pass --signal"),
     ],

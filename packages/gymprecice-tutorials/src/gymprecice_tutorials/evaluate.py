@@ -145,7 +145,7 @@ def law_point(
             f'pass --law with one value of each parameter, e.g. --law "{example}" '
             f"(`gymprecice sweep {env_info.name}` tunes it)"
         )
-    grid = law.parse_grid(text)
+    grid = law.parse_grid(text, "--law")
     several = [n for n in law.parameters if len(grid[n]) != 1]
     if several:
         raise ValueError(

@@ -118,19 +118,19 @@ class FeedbackLaw:
     def default_grid(self) -> Grid:
         return {name: [float(v) for v in values] for name, values in self.grid}
 
-    def parse_grid(self, text: str) -> Grid:
+    def parse_grid(self, text: str, flag: str = "--feedback-grid") -> Grid:
         """``"kp=2,3;ki=25,50"`` -> the law's grid with those values (others: defaults).
 
         Assignments are separated by ``;`` or spaces; an unknown parameter, a missing
-        ``=`` or a value that is not a finite number is an error naming the law's
-        parameters."""
+        ``=`` or a value that is not a finite number is an error naming ``flag`` (the
+        option the text came from) and the law's parameters."""
         grid = self.default_grid()
         tight = re.sub(r"\s*([=,])\s*", r"\1", text)  # "kp = 2, 3" is "kp=2,3"
         for item in tight.replace(";", " ").split():
             name, sep, values = item.partition("=")
             if not sep or name not in grid:
                 raise ValueError(
-                    f"--feedback-grid takes NAME=V1,V2,... for the {self.name} law's "
+                    f"{flag} takes NAME=V1,V2,... for the {self.name} law's "
                     f"parameters ({', '.join(self.parameters)}); got {item!r}"
                 )
             try:
@@ -139,7 +139,7 @@ class FeedbackLaw:
                 numbers = []
             if not numbers or not all(math.isfinite(v) for v in numbers):
                 raise ValueError(
-                    f"--feedback-grid {name}= needs comma-separated finite numbers, got {values!r}"
+                    f"{flag} {name}= needs comma-separated finite numbers, got {values!r}"
                 )
             grid[name] = numbers
         return grid
