@@ -218,6 +218,20 @@ def test_every_help_shows_defaults_and_a_description():
         assert len(usage.split("]")[-1].strip()) > 40, command  # a description
 
 
+def test_top_level_help_and_every_command_help_format(capsys):
+    """argparse %-formats every help string: a bare "%" in one breaks ``gymprecice --help``."""
+    parser = build_parser()
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for command in sub.choices:
+        assert command in out, command
+        assert sub.choices[command].format_help(), command
+    assert "95 % of the drag floor" in " ".join(out.split())
+
+
 def test_rollouts_default_to_the_environments_own_horizon(tmp_path):
     parser = build_parser()
     out = tmp_path / "out"

@@ -450,7 +450,7 @@ def _time_to_floor_parser(sub: Any) -> None:
     p = _parser(
         sub,
         "time-to-floor",
-        help="how soon training runs reached 90 / 95 % of the drag floor",
+        help="how soon training runs reached 90 / 95 %% of the drag floor",
         description="Evaluate each training run's checkpoints in order, deterministically "
         "from every held-out start, until one reaches the highest --fractions of the drag "
         "floor once settled; print the wall-clock from the training command's start to the "
