@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 from gymnasium.spaces import Box
 
+from gymprecice.cli import main
+from gymprecice_tutorials import evaluate
 from gymprecice_tutorials.feedback import load_law
 from gymprecice_tutorials.heated_plate.pid import PID_LAW
 from gymprecice_tutorials.sweep import SweepResult, best, constant_controller, parse_grid
@@ -157,6 +159,15 @@ def test_feedback_without_what_its_env_needs_is_refused_leaving_nothing(
         timeout=120,
     )
     assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_bad_law_is_reported_before_missing_solvers(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(evaluate, "require_solvers", lambda *a, **k: 3)  # no solvers here
+    assert main(["feedback", "heated-plate", "--law", "kx=3", "--out", "run"]) == 2
+    assert "--law takes NAME=V1,V2,... for the pid law's" in capsys.readouterr().err
+    assert main(["feedback", "heated-plate", "--law", "kp=3;ki=50;kd=1", "--out", "run"]) == 3
     assert not (tmp_path / "run").exists()
 
 

@@ -418,10 +418,7 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
         for line in lines:
             print(f"gymprecice evaluate: {line}")
         kwargs.update(applied)
-    if not args.double:
-        status = require_solvers(env_info, command, verbose=args.require_solvers)
-        if status:
-            return status
+    # what was typed is checked before the machine: a bad --law is the user's to fix anywhere
     try:
         own_law = law_point(env_info, getattr(args, "law", None)) if command == "feedback" else None
     except ValueError as exc:
@@ -434,6 +431,10 @@ def rollout_command(command: str, args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    if not args.double:
+        status = require_solvers(env_info, command, verbose=args.require_solvers)
+        if status:
+            return status
     # The policy acts in [-1, 1] (training rescales); the fixed controllers act in the
     # env's own units, so that "zero" means jets closed.
     # the robustness wrappers' noise is seeded by each episode's reset seed
