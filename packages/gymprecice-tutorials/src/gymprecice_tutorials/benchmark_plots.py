@@ -14,11 +14,14 @@
 from __future__ import annotations
 
 import csv
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from gymprecice_tutorials.benchmark_stats import iqm
 
 __all__ = ["plot_objective_per_start", "plot_return_wallclock", "seed_curve"]
 
@@ -111,19 +114,26 @@ def plot_objective_per_start(
     for i, c in enumerate(learned):
         scores = np.asarray(c["metrics"]["objective"]["scores"], dtype=float)
         offset = (i - (len(learned) - 1) / 2) * width
-        from gymprecice_tutorials.benchmark_stats import iqm
-
+        # an open diamond, so that the seeds' dots stay visible inside it
         (line,) = ax.plot(
-            x + offset, iqm(scores, axis=0), "D", markersize=9, label=f"{c['label']} (IQM)"
+            x + offset,
+            iqm(scores, axis=0),
+            "D",
+            markersize=10,
+            fillstyle="none",
+            markeredgewidth=1.5,
+            label=f"{c['label']} (IQM)",
         )
         for row in scores:
-            ax.plot(x + offset, row, "o", color=line.get_color(), markersize=3, alpha=0.6)
+            ax.plot(x + offset, row, "o", color=line.get_color(), markersize=4, alpha=0.7)
     for c in controllers:
         if c in learned:
             continue
         scores = np.asarray(c["metrics"]["objective"]["scores"], dtype=float)[0]
         ax.plot(x, scores, marker="s", linestyle="--", label=c["label"])
-    ax.set_xticks(x, list(starts))
+    # start labels are sentences ("setpoint 305.25 K, inflow -> 0.045 m/s at 0.5 s"):
+    # wrapped, so that neighbours do not overprint each other
+    ax.set_xticks(x, [textwrap.fill(str(s), 24) for s in starts])
     ax.set_xlim(-0.5, len(starts) - 0.5)
     ax.set_xlabel("held-out start")
     ax.set_ylabel("objective (lower is better)")
