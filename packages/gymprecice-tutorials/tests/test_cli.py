@@ -199,10 +199,13 @@ def test_manifest_hashes_configuration_not_results(tmp_path):
 # -- help, one-line errors -------------------------------------------------------------------
 
 
-def _help(command: str) -> str:
+def _commands() -> dict[str, argparse.ArgumentParser]:
     parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return sub.choices[command].format_help()
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def _help(command: str) -> str:
+    return _commands()[command].format_help()
 
 
 def test_every_help_shows_defaults_and_a_description():
@@ -220,15 +223,13 @@ def test_every_help_shows_defaults_and_a_description():
 
 def test_top_level_help_and_every_command_help_format(capsys):
     """argparse %-formats every help string: a bare "%" in one breaks ``gymprecice --help``."""
-    parser = build_parser()
     with pytest.raises(SystemExit) as exit_info:
         main(["--help"])
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    for command in sub.choices:
+    for command, parser in _commands().items():
         assert command in out, command
-        assert sub.choices[command].format_help(), command
+        assert parser.format_help(), command
     assert "95 % of the drag floor" in " ".join(out.split())
 
 
