@@ -13,13 +13,19 @@ second environment on the second core costs.
    coupling the fluid and the solid mostly wait for each other, so a second environment
    should cost little.
 
-Run: ``python benchmarks/bench_flap_episode.py`` (needs the real stack: preCICE, OpenFOAM
-with the adapter, the deal.II adapter's ``elasticity``). Prints figures; it is not a test.
+``--solid fenics`` runs the FEniCS solid instead of deal.II's (its profiling file lies in
+``solid-fenics/``); ``--alone`` skips the second part.
+
+Run: ``python benchmarks/bench_flap_episode.py [--solid dealii|fenics] [--alone]`` (needs
+the real stack: preCICE, OpenFOAM with the adapter, the deal.II adapter's ``elasticity`` or
+the FEniCS solver environment). Prints figures; it is not a test.
 """
 
 from __future__ import annotations
 
+import argparse
 import multiprocessing
+import os
 import re
 import sys
 import tempfile
@@ -49,12 +55,12 @@ def profile_totals(path: Path) -> dict[str, float]:
     return dict(totals)
 
 
-def episode(run_root: str, seed: int = 0) -> tuple[float, Path]:
+def episode(run_root: str, seed: int = 0, solid: str = "dealii") -> tuple[float, Path]:
     """One uncontrolled episode from held-out start ``seed``; (wall-clock s, env dir)."""
     import gymprecice  # noqa: F401  (registers the ids)
     from gymprecice_tutorials.perpendicular_flap.fast import PerpendicularFlapFastEnv
 
-    env = PerpendicularFlapFastEnv(run_root=run_root, uncontrolled=True)
+    env = PerpendicularFlapFastEnv(run_root=run_root, uncontrolled=True, solid=solid)
     try:
         env.reset(seed=0, options={"split": "eval"})  # prepares the case (mesh) once
         started = time.perf_counter()
@@ -68,20 +74,28 @@ def episode(run_root: str, seed: int = 0) -> tuple[float, Path]:
         env.close()
 
 
-def _episode_in_process(args: tuple[str, int]) -> float:
+def _episode_in_process(args: tuple[str, int, str]) -> float:
     return episode(*args)[0]
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    from gymprecice_tutorials.perpendicular_flap.packaged_case import SOLIDS
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--solid", choices=sorted(SOLIDS), default="dealii")
+    parser.add_argument("--alone", action="store_true", help="skip the two-environment run")
+    args = parser.parse_args(argv)
+    load = " ".join(f"{x:.1f}" for x in os.getloadavg())
+    print(f"solid: {args.solid}; load average before: {load}")
     with tempfile.TemporaryDirectory() as root:
-        alone, env_dir = episode(str(Path(root) / "alone"))
+        alone, env_dir = episode(str(Path(root) / "alone"), 0, args.solid)
         print(f"one episode (1 s gust + 3 s), one environment: {alone:.1f} s wall-clock")
         print(
             f"{'participant':<12}{'own work':>10}{'in advance':>12}{'initialize':>12}{'total':>9}"
         )
         for participant, folder in (
             ("Fluid", "fluid-openfoam"),
-            ("Solid", "solid-dealii"),
+            ("Solid", SOLIDS[args.solid]),
             ("Controller", "."),
         ):
             files = sorted((env_dir / folder / "precice-profiling").glob(f"{participant}-*.txt"))
@@ -101,10 +115,15 @@ def main() -> int:
                 f"coupling iterations per window: mean {rows[:, 2].mean():.2f}, "
                 f"max {rows[:, 2].max():.0f} over {len(rows)} windows"
             )
+        load = " ".join(f"{x:.1f}" for x in os.getloadavg())
+        print(f"load average after: {load}")
+        if args.alone:
+            return 0
         with multiprocessing.get_context("spawn").Pool(2) as pool:
             started = time.perf_counter()
             pair = pool.map(
-                _episode_in_process, [(str(Path(root) / f"pair{i}"), 0) for i in (0, 1)]
+                _episode_in_process,
+                [(str(Path(root) / f"pair{i}"), 0, args.solid) for i in (0, 1)],
             )
             both = time.perf_counter() - started
         print(

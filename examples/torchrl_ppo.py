@@ -1,23 +1,26 @@
-"""TorchRL's PPO on a gymprecice vector env, through TorchRL's Gymnasium wrapper.
+"""TorchRL's PPO on a gymprecice vector env, through its Gymnasium wrapper.
 
-    python examples/torchrl_ppo.py --double                    # a few hundred steps, no solvers
+    # a few hundred steps, no solvers
+    python examples/torchrl_ppo.py --double
     gymprecice evaluate jet-cylinder-fast --double --policy runs/torchrl-ppo
 
 TorchRL wraps Gymnasium environments with ``GymWrapper``; wrapped around
-:class:`gymprecice.vector.ResilientVectorEnv` (Gymnasium's same-step autoreset), each
-gymprecice env runs in its own worker, a failed solver truncates only its env's episode,
-and TorchRL sees one batched environment. The rest is TorchRL's own PPO: a ``Collector``
-gathers ``--frames-per-batch`` steps, ``GAE`` estimates advantages, ``ClipPPOLoss`` updates
-a Gaussian policy and a value network.
+:class:`gymprecice.vector.ResilientVectorEnv` (Gymnasium's same-step autoreset),
+each gymprecice env runs in its own worker, a failed solver truncates only its
+env's episode, and TorchRL sees one batched environment. The rest is TorchRL's
+own PPO: a ``Collector`` gathers ``--frames-per-batch`` steps, ``GAE`` estimates
+advantages, ``ClipPPOLoss`` updates a Gaussian policy and a value network.
 
-The networks are Stable-Baselines3's ``MlpPolicy`` layer for layer (64 x 64, tanh, a
-state-independent log standard deviation), so the trained weights are saved as an SB3 PPO
-model (``<out>/model.zip``) that ``gymprecice evaluate`` loads like one ``gymprecice
-train`` made, beside the TorchRL state dict (``<out>/torchrl_policy.pt``).
+The networks are Stable-Baselines3's ``MlpPolicy`` layer for layer (64 x 64,
+tanh, a state-independent log standard deviation), so the trained weights are
+saved as an SB3 PPO model (``<out>/model.zip``) that ``gymprecice evaluate``
+loads like one ``gymprecice train`` made, beside the TorchRL state dict
+(``<out>/torchrl_policy.pt``).
 
-For a real case: drop ``--double`` (the env then couples to OpenFOAM through preCICE), or
-set ``--env-id`` to your own registered env; raise ``--total-frames`` (the main job used
-48,000 actions) and ``--num-envs`` to the cores you have (one solver per env).
+For a real case: drop ``--double`` (the env then couples to OpenFOAM through
+preCICE), or set ``--env-id`` to your own registered env; raise
+``--total-frames`` (the shipped PPO policy's run used 48,000 actions) and
+``--num-envs`` to the cores you have (one solver per env).
 """
 
 from __future__ import annotations
@@ -44,9 +47,16 @@ from gymprecice.vector import ResilientVectorEnv
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--env-id", default="gymprecice/JetCylinderFast-v0")
-    p.add_argument("--double", action="store_true", help="run on gymprecice's test double")
+    p.add_argument(
+        "--double", action="store_true", help="run on gymprecice's test double"
+    )
     p.add_argument("--num-envs", type=int, default=2)
-    p.add_argument("--frames-per-batch", type=int, default=80, help="steps per update, all envs")
+    p.add_argument(
+        "--frames-per-batch",
+        type=int,
+        default=80,
+        help="steps per update, all envs",
+    )
     p.add_argument("--total-frames", type=int, default=320)
     p.add_argument("--learning-rate", type=float, default=3e-4)
     p.add_argument("--gamma", type=float, default=0.99)
@@ -61,8 +71,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def make_env(env_id: str, idx: int, double: bool) -> gym.Env:
-    """One env, its actions rescaled to [-1, 1] as ``gymprecice evaluate`` rescales them."""
-    import gymprecice  # noqa: F401  (registers the gymprecice/... ids in the worker)
+    """One env, actions rescaled to [-1, 1] as ``gymprecice evaluate`` does."""
+    # registers the gymprecice/... ids in the worker
+    import gymprecice  # noqa: F401
 
     kwargs = {"double": True} if double else {}
     env = gym.make(env_id, idx=idx, **kwargs)
@@ -70,10 +81,11 @@ def make_env(env_id: str, idx: int, double: bool) -> gym.Env:
 
 
 class TorchRLInfos(gym.vector.VectorWrapper):
-    """Hand TorchRL only the infos it reads: the ended episodes' last observations.
+    """Hand TorchRL only the infos it reads: the ended episodes' last obs.
 
-    TorchRL turns every info entry into a tensor, and gymprecice's infos also hold text and
-    nested timings. A failed env's description (``infos["failure"]``) is printed instead.
+    TorchRL turns every info entry into a tensor, and gymprecice's infos also
+    hold text and nested timings. A failed env's description
+    (``infos["failure"]``) is printed instead.
     """
 
     def __init__(self, env: gym.vector.VectorEnv) -> None:
@@ -88,18 +100,24 @@ class TorchRLInfos(gym.vector.VectorWrapper):
         obs, reward, terminated, truncated, infos = self.env.step(actions)
         for i in np.flatnonzero(infos.get("_failure", ())):
             print(f"env {i} failed and was replaced: {infos['failure'][i]}")
-        kept = {key: infos[key] for key in ("final_obs", "_final_obs") if key in infos}
+        kept = {
+            key: infos[key]
+            for key in ("final_obs", "_final_obs")
+            if key in infos
+        }
         return obs, reward, terminated, truncated, kept
 
 
 class Networks(nn.Module):
-    """The policy and value networks, named as SB3's ``ActorCriticPolicy`` names them."""
+    """The policy and value networks, named as SB3's ``ActorCriticPolicy``."""
 
     def __init__(self, obs_dim: int, act_dim: int) -> None:
         super().__init__()
 
         def body() -> nn.Sequential:
-            return nn.Sequential(nn.Linear(obs_dim, 64), nn.Tanh(), nn.Linear(64, 64), nn.Tanh())
+            return nn.Sequential(
+                nn.Linear(obs_dim, 64), nn.Tanh(), nn.Linear(64, 64), nn.Tanh()
+            )
 
         self.mlp_extractor = nn.Module()
         self.mlp_extractor.policy_net = body()
@@ -130,11 +148,14 @@ class ValueHead(nn.Module):
         return self.nets.value_net(self.nets.mlp_extractor.value_net(obs))
 
 
-def save_as_sb3(nets: Networks, vec_env: gym.vector.VectorEnv, path: Path) -> None:
-    """Write the networks as an SB3 PPO model: ``gymprecice evaluate --policy`` loads it."""
+def save_as_sb3(
+    nets: Networks, vec_env: gym.vector.VectorEnv, path: Path
+) -> None:
+    """The networks as an SB3 PPO model for ``gymprecice evaluate --policy``."""
     from stable_baselines3 import PPO
 
-    class Spaces(gym.Env):  # SB3 builds its policy from an env's spaces; never stepped
+    # SB3 builds its policy from an env's spaces; never stepped
+    class Spaces(gym.Env):
         observation_space = vec_env.single_observation_space
         action_space = vec_env.single_action_space
 
@@ -147,7 +168,10 @@ def save_as_sb3(nets: Networks, vec_env: gym.vector.VectorEnv, path: Path) -> No
 def train(args: argparse.Namespace) -> Path:
     torch.manual_seed(args.seed)
     vec_env = ResilientVectorEnv(
-        [functools.partial(make_env, args.env_id, i, args.double) for i in range(args.num_envs)]
+        [
+            functools.partial(make_env, args.env_id, i, args.double)
+            for i in range(args.num_envs)
+        ]
     )
     try:
         env = GymWrapper(TorchRLInfos(vec_env))
@@ -157,24 +181,34 @@ def train(args: argparse.Namespace) -> Path:
         nets = Networks(obs_dim, act_dim)
         actor = ProbabilisticActor(
             TensorDictModule(
-                GaussianHead(nets), in_keys=["observation"], out_keys=["loc", "scale"]
+                GaussianHead(nets),
+                in_keys=["observation"],
+                out_keys=["loc", "scale"],
             ),
             in_keys=["loc", "scale"],
             distribution_class=IndependentNormal,
             spec=env.action_spec_unbatched,
-            safe=True,  # sampled actions are clipped to the Box, as SB3 clips them
+            # sampled actions are clipped to the Box, as SB3 clips them
+            safe=True,
             return_log_prob=True,
         )
         critic = ValueOperator(ValueHead(nets), in_keys=["observation"])
-        advantage = GAE(gamma=args.gamma, lmbda=args.gae_lambda, value_network=critic)
-        loss = ClipPPOLoss(actor, critic, clip_epsilon=args.clip_coef, entropy_coeff=0.0)
-        optimizer = torch.optim.Adam(loss.parameters(), lr=args.learning_rate, eps=1e-5)
+        advantage = GAE(
+            gamma=args.gamma, lmbda=args.gae_lambda, value_network=critic
+        )
+        loss = ClipPPOLoss(
+            actor, critic, clip_epsilon=args.clip_coef, entropy_coeff=0.0
+        )
+        optimizer = torch.optim.Adam(
+            loss.parameters(), lr=args.learning_rate, eps=1e-5
+        )
         collector = Collector(
             env,
             actor,
             frames_per_batch=args.frames_per_batch,
             total_frames=args.total_frames,
-            auto_register_policy_transforms=False,  # the policy keeps no state between steps
+            # the policy keeps no state between steps
+            auto_register_policy_transforms=False,
         )
         started, frames = time.monotonic(), 0
         for batch in collector:
@@ -183,18 +217,23 @@ def train(args: argparse.Namespace) -> Path:
             for _ in range(args.update_epochs):
                 with torch.no_grad():
                     advantage(batch)
-                for idx in torch.randperm(batch.numel()).split(args.minibatch_size):
+                for idx in torch.randperm(batch.numel()).split(
+                    args.minibatch_size
+                ):
                     losses = loss(batch[idx])
                     total = losses["loss_objective"] + losses["loss_critic"]
                     total = total + losses.get("loss_entropy", torch.zeros(()))
                     optimizer.zero_grad()
                     total.backward()
-                    nn.utils.clip_grad_norm_(loss.parameters(), args.max_grad_norm)
+                    nn.utils.clip_grad_norm_(
+                        loss.parameters(), args.max_grad_norm
+                    )
                     optimizer.step()
             collector.update_policy_weights_()
             reward = batch["next", "reward"].mean().item()
             print(
-                f"{frames}/{args.total_frames} frames, mean step reward {reward:.3f}, "
+                f"{frames}/{args.total_frames} frames, "
+                f"mean step reward {reward:.3f}, "
                 f"{time.monotonic() - started:.0f} s"
             )
         collector.shutdown()
@@ -208,5 +247,6 @@ def train(args: argparse.Namespace) -> Path:
     return path
 
 
-if __name__ == "__main__":  # the vector env's workers start with forkserver: guard the entry
+# the vector env's workers start with forkserver: guard the entry
+if __name__ == "__main__":
     train(parse_args())

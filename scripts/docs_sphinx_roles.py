@@ -28,6 +28,8 @@ def _resolve(name: str, obj: griffe.Object) -> str:
         "gymprecice",
         "gymprecice_openfoam",
         "gymprecice_dealii",
+        "gymprecice_fenics",
+        "gymprecice_lab",
         "gymprecice_tutorials",
     ):
         return target

@@ -42,6 +42,7 @@ $PIP install -q --disable-pip-version-check \
   -e packages/gymprecice-openfoam \
   -e packages/gymprecice-dealii \
   -e packages/gymprecice-fenics \
+  -e packages/gymprecice-lab \
   -e "packages/gymprecice-tutorials[train]" \
   pytest pytest-timeout
 "$PY" -c "import gymnasium, ray, torch; print('setup-rllib: ray', ray.__version__, 'gymnasium', gymnasium.__version__, 'torch', torch.__version__)"

@@ -72,10 +72,11 @@ class FakeCylinderEnv(Adapter):
         return jets
 
     def _get_observation(self, read_data, read_var_list):
+        self._read = read_data  # what the reward reads too
         return np.asarray(read_data["cylinder"], dtype=np.float32)
 
     def _get_reward(self):
-        return -float(np.abs(self._last_read["cylinder"]).mean())
+        return -float(np.abs(self._read["cylinder"]).mean())
 
 
 def _case(tmp_path: Path, library: str, *, max_time: float = 0.1, variant=None, **partner) -> Path:
@@ -116,6 +117,7 @@ def _run_episode(env: Adapter, action: float) -> tuple[list[np.ndarray], dict]:
 
 @pytest.mark.parametrize("library", LIBRARIES)
 def test_explicit_episode_with_direct_access_reads(tmp_path, library):
+    """Cost: about 2 s per library (a 10-window episode; real preCICE adds its start-up)."""
     env = FakeCylinderEnv(_case(tmp_path, library), 0, run_root=tmp_path / "runs")
     observations, info = _run_episode(env, 0.5)
     assert len(observations) == 11  # reset + 10 windows of 0.01 up to max-time 0.1
@@ -145,6 +147,7 @@ def test_double_and_real_precice_agree(tmp_path):
 
 @pytest.mark.parametrize("library", LIBRARIES)
 def test_implicit_coupling_honours_checkpoints(tmp_path, library):
+    """Cost: about 2 s per library (a 5-window implicit episode)."""
     case = _case(tmp_path, library, max_time=0.05, variant="implicit")
     env = FakeCylinderEnv(case, 0, run_root=tmp_path / "runs")
     observations, info = _run_episode(env, 0.2)
@@ -155,6 +158,7 @@ def test_implicit_coupling_honours_checkpoints(tmp_path, library):
 
 @pytest.mark.parametrize("library", LIBRARIES)
 def test_partner_killed_mid_episode_is_reported_not_hung(tmp_path, library):
+    """Cost: about 1 s per library (three windows, then the partner dies)."""
     case = _case(tmp_path, library, crash_at_window=3)
     env = FakeCylinderEnv(case, 2, run_root=tmp_path / "runs")
     env.reset()
@@ -169,6 +173,7 @@ def test_partner_killed_mid_episode_is_reported_not_hung(tmp_path, library):
 
 @pytest.mark.parametrize("library", LIBRARIES)
 def test_partner_hanging_mid_episode_times_out(tmp_path, library):
+    """Cost: about 7 s per library, nearly all of it the progress timeout it checks."""
     case = _case(tmp_path, library, hang_at_window=2)
     env = FakeCylinderEnv(case, 0, run_root=tmp_path / "runs")
     env.reset()
@@ -205,7 +210,7 @@ sys.path.insert(0, {str(Path(__file__).parent)!r})
 from test_adapter_coupled import FakeCylinderEnv
 env = FakeCylinderEnv({str(case)!r}, 0, run_root={str(tmp_path / "runs")!r})
 env.reset()
-print(" ".join(str(p.pid) for p in env._session.solvers), env._session.worker.pid, flush=True)
+print(" ".join(str(p.pid) for p in env._gymprecice.run.session.solvers), env._gymprecice.run.session.worker.pid, flush=True)
 {then}
 """
 

@@ -246,6 +246,9 @@ RESET_FAULTS = [
     with_real_variants(RESET_FAULTS),
 )
 def test_fault_at_reset(chaos, caplog, library, phase, fault, params, type_suffix, tail):
+    """Cost: about 3 to 9 s per case, most of it waiting: a SIGSTOP case waits out the reset
+    timeout it checks; the real-preCICE cases add its start-up.
+    """
     caplog.set_level(logging.WARNING, logger="gymprecice.vector")
     venv = chaos.make()
     watcher = watch(venv, FAILED)
@@ -385,6 +388,9 @@ def fail_mid_episode(
     with_real_variants(MID_FAULTS),
 )
 def test_fault_mid_episode(chaos, caplog, library, armed, action, kind, type_suffix, tail):
+    """Cost: about 3 to 14 s per case, most of it waiting for the fault's report (a SIGSTOP case
+    waits out the progress timeout it checks).
+    """
     caplog.set_level(logging.WARNING, logger="gymprecice.vector")
     venv = chaos.make()
     watcher = watch(venv, FAILED)
@@ -399,6 +405,7 @@ def test_fault_mid_episode(chaos, caplog, library, armed, action, kind, type_suf
 
 @pytest.mark.parametrize("library", LIBRARIES)
 def test_two_envs_failing_at_once_recover_in_parallel(chaos, caplog, library):
+    """Cost: about 5 s per library (two envs, two faults, two recoveries)."""
     venv = chaos.make(n=3)
     watchers = [watch(venv, 1), watch(venv, 2)]
     venv.reset(seed=0)
@@ -425,7 +432,10 @@ def test_two_envs_failing_at_once_recover_in_parallel(chaos, caplog, library):
 @pytest.mark.parametrize("library", LIBRARIES)
 def test_two_envs_run_whole_episodes_side_by_side(tmp_path, monkeypatch, library):
     """Two envs couple at once (each its own worker, solver and exchange directory) through
-    two whole episodes; both advance every step, and nothing runs after close()."""
+    two whole episodes; both advance every step, and nothing runs after close().
+
+    Cost: about 7 s per library (two whole episodes at once).
+    """
     monkeypatch.setenv("GYMPRECICE_DISABLE_PLUGINS", "1")
     monkeypatch.delenv(LIBRARY_ENV_VAR, raising=False)
     windows, per_step = 6, 2

@@ -4,7 +4,9 @@ A block is executed on its own unless the HTML comment on the line before it say
 otherwise: ``<!-- docs-test: compile ... -->`` (it needs names the reader supplies),
 ``<!-- docs-test: jet-env ... -->`` (docs/writing-an-env.md's env: run against the test double with
 the fake cylinder flow writing OpenFOAM-format probes and force coefficients), or
-``<!-- docs-test: plugin -->`` (registered as a plugin and its hooks called). Blocks that
+``<!-- docs-test: plugin -->`` (registered as a plugin and its hooks called), or
+``<!-- docs-test: compose-... -->`` (docs/composing.md's files and envs, run together by
+tests/test_docs_composing.py, which also runs its XML and JSON blocks). Blocks that
 define an env are constructed and stepped, so an example that cannot run fails here. A
 block that only includes a file (``--8<-- "examples/x.py"``) is skipped: the file is
 tested where it lives (tests/test_examples.py; RLlib's in tests/test_rllib.py).
@@ -75,7 +77,7 @@ def _only(mode: str) -> Block:
 def test_the_blocks_are_found() -> None:
     modes = ("run", "compile", "jet-env", "plugin", "plugin-guide")
     assert {"jet-env", "plugin", "plugin-guide", "compile"} <= {b.mode for b in BLOCKS}
-    assert all(b.mode in modes for b in BLOCKS), BLOCKS
+    assert all(b.mode in modes or b.mode.startswith("compose-") for b in BLOCKS), BLOCKS
 
 
 @pytest.mark.parametrize("block", BLOCKS, ids=[b.id for b in BLOCKS])
@@ -175,6 +177,11 @@ class TestPluginGuideConformance(_PrintedPluginConformance):
         assert rows.tolist() == [[0.1, 300.5], [0.2, 301.0]] and reader.latest_time == 0.2
         with pytest.raises(TimeoutError, match=r"temperature\.dat: no row for t=0\.3"):
             reader.wait_until(0.3, timeout=0)  # the last line is not complete yet
+        assert reader.wait_until(0.2, timeout=0) is rows  # asked again: the same rows
+        with (solver.run_dir / "temperature.dat").open("a") as handle:
+            handle.write("1.5\n0.4 302.0\n")  # the solver runs a row ahead
+        assert reader.wait_until(0.3, timeout=5).tolist() == [[0.3, 301.5]]
+        assert reader.latest_time == 0.3 and reader.read_new().tolist() == [[0.4, 302.0]]
 
     def test_it_finds_what_validation_is_for(self, plugin, solver, tmp_path: Path) -> None:
         from gymprecice.testing import case_config, validation_context
@@ -209,7 +216,7 @@ def test_readme_plugin_runs_in_an_env_without_a_prepare_hook(tmp_path: Path) -> 
 def _jet_geometry_plugin(spec) -> types.ModuleType:
     """Stands in for the OpenFOAM plugin's patch geometry of the fake flow's jets."""
     from gymprecice.hookspecs import hookimpl
-    from gymprecice_tutorials.jet_cylinder.geometry import patch_geometry
+    from gymprecice_tutorials.cylinder_geometry import patch_geometry
 
     @hookimpl
     def gymprecice_interface_geometry(solver, interface, mesh):

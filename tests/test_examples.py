@@ -82,6 +82,7 @@ def _on_real_precice(example: str, tmp_path: Path) -> Path:
 @pytest.mark.precice
 @pytest.mark.skipif(not _real_precice_importable(), reason="pyprecice / preCICE not installed")
 def test_python_solver_example_runs_on_real_precice(tmp_path: Path, monkeypatch) -> None:
+    """Cost: about 1 s (the example's Python solver and the env, a few windows)."""
     case = _on_real_precice("python-solver", tmp_path)
     monkeypatch.chdir(tmp_path)
     env = _load(case / "env.py").HeatedRodEnv(case)
@@ -101,6 +102,7 @@ def test_python_solver_example_runs_on_real_precice(tmp_path: Path, monkeypatch)
 @pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_openfoam_example_runs_on_real_openfoam_and_precice(tmp_path: Path, monkeypatch) -> None:
+    """Cost: about 3 s (blockMesh and a few pimpleFoam windows of the example's small case)."""
     from gymprecice.errors import CaseError
     from gymprecice_openfoam.installation import find_openfoam
 

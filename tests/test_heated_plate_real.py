@@ -9,7 +9,6 @@ machines without the real stack; ``GYMPRECICE_REQUIRE_REAL=1`` (CI) fails instea
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -17,30 +16,12 @@ import pytest
 
 from gymprecice.processes import kill_recorded_groups
 from gymprecice_fenics import solver_env
+from gymprecice_openfoam.testing import missing_coupled_stack
 from gymprecice_tutorials.heated_plate.environment import SOLID_AGREEMENT_K, HeatedPlateEnv
 
 
 def _missing(solid: str) -> list[str]:
-    missing = []
-    try:
-        import precice
-
-        if not hasattr(precice, "Participant"):
-            missing.append("pyprecice v3")
-    except ImportError:
-        missing.append("pyprecice (the preCICE library and its Python bindings)")
-    for program in ("buoyantPimpleFoam", "laplacianFoam", "blockMesh"):
-        if shutil.which(program) is None:
-            missing.append(f"OpenFOAM ({program})")
-    from gymprecice.errors import CaseError
-    from gymprecice_openfoam.installation import find_openfoam
-
-    try:
-        adapter = find_openfoam().find_library()
-    except CaseError:
-        adapter = None
-    if adapter is None:
-        missing.append("the OpenFOAM-preCICE adapter (libpreciceAdapterFunctionObject.so)")
+    missing = missing_coupled_stack("buoyantPimpleFoam", "laplacianFoam", "blockMesh")
     if solid == "fenics":
         missing += list(solver_env.probe().problems)
     return missing
@@ -87,6 +68,10 @@ def episodes(tmp_path_factory) -> dict[str, list[float]]:
 
 @pytest.mark.parametrize("solid", ["openfoam", pytest.param("fenics", marks=pytest.mark.fenics)])
 def test_one_coupled_episode_with_each_plate_follows_the_heater(episodes, solid: str) -> None:
+    """Cost: about 40 CPU-s (1 to 2 min on 2 cores), paid once by the module: two coupled 0.4 s
+    episodes, buoyantPimpleFoam with laplacianFoam, then with the FEniCS plate; each case only
+    reads them.
+    """
     if solid not in episodes:
         pytest.skip("needs " + ", ".join(_missing(solid)))
     temperatures = episodes[solid]
@@ -100,6 +85,7 @@ def test_one_coupled_episode_with_each_plate_follows_the_heater(episodes, solid:
 
 @pytest.mark.fenics
 def test_the_openfoam_and_fenics_plates_agree(episodes) -> None:
+    """Cost: nothing of its own: it compares the module's two episodes."""
     missing = _missing("fenics")
     if missing:
         pytest.skip("needs " + ", ".join(missing))

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice_tutorials import plots
+from gymprecice_lab import plots
 
 
 def _run(root: Path, name: str, algo: str, offset: float) -> Path:

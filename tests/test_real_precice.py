@@ -244,6 +244,8 @@ def test_misuse_outcomes(tmp_path: Path, library: str, case: str) -> None:
 
     The double runs with ``GYMPRECICE_FAKE_PRECICE_MISUSE=crash`` here; by default it raises
     ``PreciceError`` where preCICE aborts or crashes.
+
+    Cost: about 1 s per case and library (one or two short-lived participants).
     """
     cfg = pair_config(tmp_path, initialize=True)
     env = {
@@ -305,6 +307,7 @@ _AFTER_INITIALIZE = textwrap.dedent(
 
 
 def test_misuse_after_initialize_raises(tmp_path: Path, procs: Procs) -> None:
+    """Cost: about 1 s per library (two participants, one window)."""
     cfg = pair_config(tmp_path)
     procs.partner(cfg, "B", flow="gymprecice.testing.flows:NullFlow")
     env = {**os.environ, "GYMPRECICE_DISABLE_PLUGINS": "1"}
@@ -347,6 +350,7 @@ def test_misuse_after_initialize_raises(tmp_path: Path, procs: Procs) -> None:
 def test_explicit_data_flow_and_mappings(
     tmp_path: Path, procs: Procs, kind: str, b_reads: list[float], a_reads: list[float]
 ) -> None:
+    """Cost: about 1 s per scheme and library (two participants, a few windows)."""
     cfg = pair_config(tmp_path, kind=kind)
     const = {"frequency": 0}
     procs.partner(cfg, "A", flow=JETS, options={**const, "amplitude": 3})
@@ -361,6 +365,7 @@ def test_explicit_data_flow_and_mappings(
 
 
 def test_initial_data_is_read_in_the_first_window(tmp_path: Path, procs: Procs) -> None:
+    """Cost: about 1 s per library (two participants, a few windows)."""
     cfg = pair_config(tmp_path, initialize=True)
     procs.partner(cfg, "A", flow=JETS, options={"frequency": 0, "amplitude": 3})
     procs.partner(cfg, "B", flow=JETS, options={"frequency": 0, "amplitude": 5})
@@ -369,6 +374,7 @@ def test_initial_data_is_read_in_the_first_window(tmp_path: Path, procs: Procs) 
 
 
 def test_explicit_cylinder_with_subcycling(tmp_path: Path, procs: Procs) -> None:
+    """Cost: about 2 s per library (two participants, 0.03 s simulated)."""
     cfg = case_config("fake_cylinder", tmp_path, max_time=0.03)
     procs.partner(cfg, "Controller", flow=JETS)
     procs.partner(cfg, "Fluid", dt=0.004)
@@ -384,6 +390,7 @@ def test_explicit_cylinder_with_subcycling(tmp_path: Path, procs: Procs) -> None
 
 
 def test_implicit_cylinder_iterates(tmp_path: Path, procs: Procs) -> None:
+    """Cost: about 2 s per library (two participants, 0.03 s simulated, implicit)."""
     cfg = case_config("fake_cylinder", tmp_path, variant="implicit", max_time=0.03)
     procs.partner(cfg, "Controller", flow=JETS)
     procs.partner(cfg, "Fluid")
@@ -396,6 +403,7 @@ def test_implicit_cylinder_iterates(tmp_path: Path, procs: Procs) -> None:
 
 @pytest.mark.parametrize("variant", [None, "compositional"])
 def test_fsi_three_participants(tmp_path: Path, procs: Procs, variant: str | None) -> None:
+    """Cost: about 2 s per variant and library (three participants, 0.03 s simulated)."""
     cfg = case_config("fake_flap", tmp_path, variant=variant, max_time=0.03)
     procs.partner(cfg, "Controller", flow=JETS, options={"frequency": 0, "amplitude": 0.5})
     procs.partner(cfg, "Fluid", flow="gymprecice.testing.flows:FlapFluid")
@@ -410,6 +418,9 @@ def test_fsi_three_participants(tmp_path: Path, procs: Procs, variant: str | Non
 
 
 def test_survivor_blocks_when_the_partner_is_killed(tmp_path: Path, procs: Procs) -> None:
+    """Cost: about 2 s per library (two participants; one is killed, the other is watched
+    blocking).
+    """
     cfg = case_config("fake_cylinder", tmp_path, max_time=10.0)
     ctrl = procs.partner(cfg, "Controller", flow=JETS)
     fluid = procs.partner(cfg, "Fluid", crash_at_window=2)

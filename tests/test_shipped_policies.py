@@ -27,8 +27,8 @@ import numpy as np
 import pytest
 
 import gymprecice_tutorials
-from gymprecice_tutorials.manifest import file_sha256
-from gymprecice_tutorials.shipped_policies import (
+from gymprecice_lab.manifest import file_sha256
+from gymprecice_lab.shipped_policies import (
     POLICIES_DIR_ENV,
     PolicyError,
     load_shipped,
@@ -390,7 +390,12 @@ def _missing() -> list[str]:
 @pytest.mark.timeout(3600)
 def test_shipped_jet_cylinder_fast_policy_lowers_the_drag_on_openfoam(tmp_path: Path):
     """2 s from the same held-out snapshot: the shipped policy's mean Cd is below the
-    uncontrolled flow's (pre-run and snapshots first: tens of minutes on 2 cores)."""
+    uncontrolled flow's (pre-run and snapshots first: tens of minutes on 2 cores).
+
+    Cost: a few minutes on 2 cores, one of the suite's heaviest: blockMesh and the 5 s pre-run with
+    its snapshots (about 50 s; the second command restores it from the pre-run cache), then two
+    coupled 2 s episodes.
+    """
     missing = _missing()
     if missing:
         pytest.skip("needs " + ", ".join(missing))
@@ -441,7 +446,11 @@ def test_shipped_jet_cylinder_fast_policy_lowers_the_drag_on_openfoam(tmp_path: 
 def test_shipped_flap_policy_beats_the_uncontrolled_flap_on_the_real_stack(tmp_path: Path):
     """From the first held-out gust, 1.5 s of the three-participant FSI (OpenFOAM, deal.II,
     the controller): the shipped policy's mean tip displacement is below the uncontrolled
-    flap's, and its jet stays on the inlet."""
+    flap's, and its jet stays on the inlet.
+
+    Cost: a few minutes on 2 cores: two 1.5 s runs of the three-participant FSI (pimpleFoam,
+    elasticity, the controller).
+    """
     from gymprecice.stack import stack_which
 
     missing = _missing() + ([] if stack_which("elasticity") else ["the deal.II adapter"])

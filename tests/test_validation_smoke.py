@@ -18,6 +18,9 @@ pytestmark = [
 
 @pytest.mark.timeout(900)
 def test_smoke_validation_sheds_with_real_openfoam(tmp_path: Path) -> None:
+    """Cost: about 60 CPU-s, one of the heaviest real tests (pimpleFoam on the coarse Schaefer-
+    Turek mesh long enough to shed, which is what it checks).
+    """
     figure = tmp_path / "validation.png"
     done = subprocess.run(
         [

@@ -430,19 +430,19 @@ def test_workers_start_and_reset_concurrently(make_vec, tmp_path):
 def test_a_reply_that_stops_half_way_times_out_instead_of_blocking():
     from multiprocessing.connection import Pipe
 
-    from gymprecice.vector import _recv_bytes
+    from gymprecice.vector.local import recv_bytes
 
     reader, writer = Pipe(duplex=True)
     big = os.urandom(3 * 1024 * 1024)
     threading.Thread(target=writer.send_bytes, args=(big,), daemon=True).start()
-    assert _recv_bytes(reader.fileno(), time.monotonic() + 30) == big
+    assert recv_bytes(reader.fileno(), time.monotonic() + 30) == big
     for size in (1, 8, 16385):  # one write, header and body written apart
         writer.send_bytes(b"x" * size)
-        assert _recv_bytes(reader.fileno(), time.monotonic() + 30) == b"x" * size
+        assert recv_bytes(reader.fileno(), time.monotonic() + 30) == b"x" * size
     os.write(writer.fileno(), (1000).to_bytes(4, "big") + b"only part of it")
     started = time.monotonic()
     with pytest.raises(TimeoutError):
-        _recv_bytes(reader.fileno(), time.monotonic() + 0.5)
+        recv_bytes(reader.fileno(), time.monotonic() + 0.5)
     assert time.monotonic() - started < 5
 
 

@@ -23,8 +23,12 @@ class ChannelEnv(Adapter):
         # The OpenFOAM plugin knows the inlet's face centres, normals and areas (from the
         # preciceDict interface that uses the partner mesh): no set_interface_vertices.
         super().__init__(options, idx)
-        self.action_space = gym.spaces.Box(0.0, 0.2, shape=(1,), dtype=np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(3,), dtype=np.float32)
+        self.action_space = gym.spaces.Box(
+            0.0, 0.2, shape=(1,), dtype=np.float32
+        )
+        self.observation_space = gym.spaces.Box(
+            -np.inf, np.inf, shape=(3,), dtype=np.float32
+        )
         self._speed = 0.0
 
     def _get_action(self, action, write_var_list):
@@ -54,7 +58,9 @@ if __name__ == "__main__":
     try:
         obs, info = env.reset(seed=0)
         for _ in range(5):
-            obs, reward, terminated, truncated, info = env.step(np.array([0.15], np.float32))
+            obs, reward, terminated, truncated, info = env.step(
+                np.array([0.15], np.float32)
+            )
             print(f"t={info['time']:.2f} p={obs} reward={reward:.3f}")
     finally:
         env.close()

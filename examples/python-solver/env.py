@@ -26,10 +26,18 @@ class HeatedRodEnv(Adapter):
         super().__init__(options, idx)
         # A "command" solver has no geometry plugin: say where the controller's vertices
         # are, here in __init__, before the first reset. preCICE maps them to the rod's.
-        self.set_interface_vertices("heater", [[0.25, 0.0], [0.5, 0.0], [0.75, 0.0]])
-        self.set_interface_vertices("sensor", [[0.1, 0.0], [0.4, 0.0], [0.6, 0.0], [0.9, 0.0]])
-        self.action_space = gym.spaces.Box(0.0, 50.0, shape=(3,), dtype=np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(4,), dtype=np.float32)
+        self.set_interface_vertices(
+            "heater", [[0.25, 0.0], [0.5, 0.0], [0.75, 0.0]]
+        )
+        self.set_interface_vertices(
+            "sensor", [[0.1, 0.0], [0.4, 0.0], [0.6, 0.0], [0.9, 0.0]]
+        )
+        self.action_space = gym.spaces.Box(
+            0.0, 50.0, shape=(3,), dtype=np.float32
+        )
+        self.observation_space = gym.spaces.Box(
+            -np.inf, np.inf, shape=(4,), dtype=np.float32
+        )
         self._temperature = np.zeros(4, dtype=np.float32)
 
     def _get_action(self, action, write_var_list):
@@ -55,8 +63,12 @@ if __name__ == "__main__":
         obs, info = env.reset(seed=0)
         done = False
         while not done:
-            obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+            obs, reward, terminated, truncated, info = env.step(
+                env.action_space.sample()
+            )
             done = terminated or truncated
-            print(f"t={info['time']:.2f} T={np.round(obs, 4)} reward={reward:.4f}")
+            print(
+                f"t={info['time']:.2f} T={np.round(obs, 4)} reward={reward:.4f}"
+            )
     finally:
         env.close()

@@ -51,7 +51,10 @@ def main() -> None:
             laplacian = (padded[:-2] - 2 * temperature + padded[2:]) / (h * h)
             temperature = temperature + dt / steps * (laplacian + source)
         participant.write_data(
-            "Rod-Mesh-sensor", "Temperature", sensor_ids, temperature[sensor_cells]
+            "Rod-Mesh-sensor",
+            "Temperature",
+            sensor_ids,
+            temperature[sensor_cells],
         )
         participant.advance(dt)
         t += dt

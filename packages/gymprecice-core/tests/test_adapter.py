@@ -100,10 +100,12 @@ def test_reset_mid_episode_and_close_leave_nothing_running(make_case, base_confi
     case = _case(make_case, base_config, tmp_path)
     env = JetEnv(case, 0, run_root=tmp_path / "runs")
     env.reset(seed=0)
-    first = [p.pid for p in env._session.solvers] + [env._session.worker.pid]
+    session = env._gymprecice.run.session
+    first = [p.pid for p in session.solvers] + [session.worker.pid]
     env.step(env.action_space.sample())
     env.reset()
-    second = [p.pid for p in env._session.solvers] + [env._session.worker.pid]
+    session = env._gymprecice.run.session
+    second = [p.pid for p in session.solvers] + [session.worker.pid]
     assert not any(_alive(pid) for pid in first)
     env.close()
     env.close()  # idempotent
@@ -134,7 +136,7 @@ def test_solver_exiting_1_mid_episode_is_reported_with_log_tail(
     err = info.value
     assert err.env_index == 3 and err.solver == "fluid" and err.returncode == 1
     assert "divergence detected" in err.log_tail and "divergence detected" in str(err)
-    assert not env._episode_active
+    assert not env._gymprecice.active
     monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "-1")
     go.unlink()
     env.reset()  # the next reset starts clean
@@ -151,7 +153,8 @@ def test_hung_solver_is_killed_after_the_progress_timeout(
     env = JetEnv(case, 0, run_root=tmp_path / "runs")
     env.reset()
     env.step(np.array([0.0]))
-    pids = [p.pid for p in env._session.solvers] + [env._session.worker.pid]
+    session = env._gymprecice.run.session
+    pids = [p.pid for p in session.solvers] + [session.worker.pid]
     started = time.monotonic()
     with pytest.raises(SolverTimeoutError, match="no progress for 3 s"):
         env.step(np.array([0.0]))
@@ -169,7 +172,7 @@ def test_solver_exiting_at_start_fails_the_reset(make_case, base_config, tmp_pat
         argv=["{python}", "-c", "import sys; sys.exit('no mesh found')"],
     )
     env = JetEnv(case, 0, run_root=tmp_path / "runs")
-    monkeypatch.setattr("gymprecice.core.CouplingSession.initialize", _blocking_initialize)
+    monkeypatch.setattr("gymprecice.coupling.CouplingSession.initialize", _blocking_initialize)
     with pytest.raises(SolverCrashedError, match="exited with status 1") as info:
         env.reset()
     assert "no mesh found" in info.value.log_tail
@@ -268,7 +271,7 @@ def test_waiting_for_solver_output_is_timed_as_solver_time() -> None:
     """Readers from open_output report their waits, which steps count as wait_s."""
     import time as _time
 
-    from gymprecice.core import _TimedReader
+    from gymprecice.timed_reader import TimedReader
 
     class Reader:
         start_time = 8.0
@@ -281,7 +284,7 @@ def test_waiting_for_solver_output_is_timed_as_solver_time() -> None:
             return "new"
 
     clock = [0.0]
-    reader = _TimedReader(Reader(), clock)
+    reader = TimedReader(Reader(), clock)
     assert reader.wait_until(1.0, timeout=2.0) == "rows to 1.0"
     assert reader.read_new() == "new" and reader.start_time == 8.0
     assert clock[0] >= 0.05
@@ -296,8 +299,8 @@ def test_a_solver_that_dies_while_its_output_is_awaited_ends_the_wait_at_once() 
     reader's own timeout error comes at its timeout."""
     import time as _time
 
-    from gymprecice.core import OUTPUT_WAIT_SLICE_S, _TimedReader
     from gymprecice.errors import SolverCrashedError
+    from gymprecice.timed_reader import OUTPUT_WAIT_SLICE_S, TimedReader
 
     class NeverReady:
         def wait_until(self, t: float, timeout: float) -> str:
@@ -312,12 +315,12 @@ def test_a_solver_that_dies_while_its_output_is_awaited_ends_the_wait_at_once() 
             raise SolverCrashedError("env 0: solver 'solid' was killed by SIGKILL")
 
     started = _time.monotonic()
-    reader = _TimedReader(NeverReady(), [0.0], dies_on_second_look)
+    reader = TimedReader(NeverReady(), [0.0], dies_on_second_look)
     with pytest.raises(SolverCrashedError, match="'solid' was killed"):
         reader.wait_until(1.0, timeout=120.0)
     assert _time.monotonic() - started < 4 * OUTPUT_WAIT_SLICE_S
 
-    reader = _TimedReader(NeverReady(), [0.0], lambda: None)
+    reader = TimedReader(NeverReady(), [0.0], lambda: None)
     started = _time.monotonic()
     with pytest.raises(TimeoutError, match=r"no row for time 1\.0"):
         reader.wait_until(1.0, timeout=1.2)
@@ -347,3 +350,18 @@ def test_of_two_dead_solvers_the_cause_is_named_not_the_partner_precice_aborted(
     assert [s.name for s in _culprit_first([aborted, killed])] == ["solid", "fluid"]
     assert [s.name for s in _culprit_first([aborted, crashed])] == ["solid", "fluid"]
     assert [s.name for s in _culprit_first([crashed, aborted])] == ["solid", "fluid"]
+
+
+def test_info_time_is_shown_to_the_time_window_s_precision() -> None:
+    """info["time"] shows 2.0, not 2.0000000000000013 (adding windows leaves noise)."""
+    from gymprecice.episode import shown_time
+
+    noisy = sum([0.01] * 200)
+    assert noisy != 2.0 and shown_time(noisy, 0.01) == 2.0
+    assert shown_time(sum([0.1] * 3), 0.1) == 0.3
+    # a millionth of the window is kept: distinct windows never merge
+    assert shown_time(1e-9 * 3, 1e-9) == pytest.approx(3e-9, rel=1e-6) and shown_time(
+        1e-9 * 3, 1e-9
+    ) != shown_time(1e-9 * 4, 1e-9)
+    assert shown_time(1.0 / 3.0, 1.0 / 3.0) == pytest.approx(1.0 / 3.0, abs=1e-6)
+    assert shown_time(0.5, None) == 0.5

@@ -429,3 +429,61 @@ def test_check_accepts_a_case_that_launches(broken_case, capsys):
     case = broken_case("command", {"argv": ["{python}", "solver.py"]})
     (case / "fluid" / "solver.py").write_text("print('hi')\n")
     assert main(["check", str(case)]) == 0, capsys.readouterr().err
+
+
+# -- outputs: any participant's watch point ---------------------------------------------------
+
+
+def _solid(base: Path, kind: str = "command", **fields) -> SolverContext:
+    """A solver playing the fake flap's Solid, whose precice-config.xml declares Flap-Tip."""
+    from gymprecice.testing import case_config
+
+    source = base / "case" / "solid"
+    source.mkdir(parents=True)
+    xml = case_config("fake_flap", base / "xml", variant="compositional")
+    fields.setdefault("participant", "Solid")
+    return make_solver_context(kind, source, base, name="solid", precice_config=xml, **fields)
+
+
+@pytest.mark.parametrize("kind", ["command", "script", "openfoam", "dealii"])
+def test_core_opens_a_participants_watch_point_whatever_its_kind(tmp_path: Path, kind) -> None:
+    """Issue 40, bug 1: preCICE writes the log, so no solver plugin is needed to read it."""
+    from gymprecice.plugins import get_plugin_manager
+    from gymprecice.watchpoints import WatchPointLog
+
+    solver = _solid(tmp_path, kind)
+    reader = get_plugin_manager().hook.gymprecice_open_output(
+        solver=solver, name="watchpoint", options={"point": "Flap-Tip"}
+    )
+    assert isinstance(reader, WatchPointLog)
+    assert reader.path == solver.run_dir / "precice-Solid-watchpoint-Flap-Tip.log"
+
+
+def test_an_undeclared_watch_point_names_the_xml_and_the_tag_to_add(tmp_path: Path) -> None:
+    solver = _solid(tmp_path)
+    with pytest.raises(ConfigError, match=r"precice-config.xml: participant 'Solid' has no "):
+        default_plugin.gymprecice_open_output(solver, "watchpoint", {"point": "Tip"})
+    with pytest.raises(ConfigError, match=r"no participant 'Rod'.*\['Controller', 'Fluid'"):
+        default_plugin.gymprecice_open_output(
+            solver, "watchpoint", {"point": "Flap-Tip", "participant": "Rod"}
+        )
+    with pytest.raises(ConfigError, match=r"needs the watch point's name"):
+        default_plugin.gymprecice_open_output(solver, "watchpoint", {"pont": "Flap-Tip"})
+
+
+def test_core_steps_aside_where_a_plugin_knows_better(tmp_path: Path) -> None:
+    # a plugin's solver whose participant only its own files name (deal.II's parameters.prm)
+    nameless = _solid(tmp_path / "a", "dealii", participant=None)
+    assert (
+        default_plugin.gymprecice_open_output(nameless, "watchpoint", {"point": "Flap-Tip"}) is None
+    )
+    # ...but core's own kinds have no such files: the fix is named
+    with pytest.raises(ConfigError, match=r"whose watch point 'Flap-Tip'\? Set the solver's"):
+        default_plugin.gymprecice_open_output(
+            _solid(tmp_path / "b", participant=None), "watchpoint", {"point": "Flap-Tip"}
+        )
+    # a stand-in that writes an undeclared log itself is read by the plugin it names
+    stand_in = _solid(tmp_path / "c", options={"outputs": "dealii"})
+    assert default_plugin.gymprecice_open_output(stand_in, "watchpoint", {"point": "Tip"}) is None
+    # every other output is the plugins'
+    assert default_plugin.gymprecice_open_output(stand_in, "probes", {}) is None

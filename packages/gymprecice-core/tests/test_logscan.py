@@ -86,7 +86,7 @@ def test_a_solver_abort_shows_its_error_line_not_only_the_backtrace(
     monkeypatch.setenv("GYMPRECICE_PRECICE_LIBRARY", "stub_precice")
     monkeypatch.setenv("STUB_PRECICE_LOG", str(tmp_path / "writes.log"))
     monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "0")
-    monkeypatch.setattr("gymprecice.core.CouplingSession.initialize", _blocking_initialize)
+    monkeypatch.setattr("gymprecice.coupling.CouplingSession.initialize", _blocking_initialize)
     abort = (
         "import sys\n"
         f"print({PRECICE_ERROR!r})\n"
@@ -111,3 +111,15 @@ def test_a_solver_abort_shows_its_error_line_not_only_the_backtrace(
 def _blocking_initialize(self, request, timeout):
     # Real preCICE blocks in initialize until the partner connects (or dies).
     return self._state(self._request("advance", {"writes": [{}]}, timeout, checking_health=True))
+
+
+def test_a_crash_report_s_log_tail_has_no_colour_codes(tmp_path) -> None:
+    """preCICE colours its log levels: a tail shown to a person must not carry the codes."""
+    from gymprecice.errors import SolverCrashedError
+    from gymprecice.logscan import without_colours
+
+    tail = "---[precice] \x1b[31mERROR:\x1b[0m the partner is gone\n\x1b[1;33mwarning\x1b[0m\n"
+    error = SolverCrashedError("solver 'fluid' exited", solver="fluid", log_tail=tail)
+    assert "\x1b" not in str(error) and "\x1b" not in error.log_tail
+    assert "---[precice] ERROR: the partner is gone" in str(error)
+    assert without_colours("\x1b[?25l\x1b[2Kdone\x1b(B") == "done\x1b(B"  # CSI only

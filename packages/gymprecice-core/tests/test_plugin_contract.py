@@ -111,11 +111,11 @@ def test_a_waiting_solvers_problem_names_the_solver_once(tmp_path: Path) -> None
 
 def test_a_plugin_message_that_names_the_solver_is_not_named_twice() -> None:
     """Plugins written when the spec's example began with ``solver.describe()`` still read well."""
-    from gymprecice.core import _without_label
+    from gymprecice.guards import without_label
 
     label = "solver 'rod' (mysolver) of env 0"
-    assert _without_label(f"{label}: adapter not loaded", label) == "adapter not loaded"
-    assert _without_label("adapter not loaded", label) == "adapter not loaded"
+    assert without_label(f"{label}: adapter not loaded", label) == "adapter not loaded"
+    assert without_label("adapter not loaded", label) == "adapter not loaded"
 
 
 REAL_BANNER = "---[precice] \x1b[0m This is preCICE version 3.4.1"
@@ -163,8 +163,8 @@ def test_the_context_carries_the_envs_library(tmp_path: Path, monkeypatch) -> No
     monkeypatch.delenv("GYMPRECICE_PRECICE_LIBRARY", raising=False)
     env = CylinderEnv(str(case))
     try:
-        env._ensure_prepared()
-        ctx = env._solvers["rod"]
+        env._gymprecice.run.prepare()
+        ctx = env._gymprecice.run.solvers["rod"]
         assert ctx.precice_library == DOUBLE and ctx.uses_test_double
         env.reset(seed=0)  # both sides on the double: the library check stays quiet
         env.step(np.zeros(1, np.float32))
@@ -173,8 +173,8 @@ def test_the_context_carries_the_envs_library(tmp_path: Path, monkeypatch) -> No
     monkeypatch.setenv("GYMPRECICE_PRECICE_LIBRARY", "precice")
     env = CylinderEnv(str(case))
     try:
-        env._ensure_prepared()
-        assert env._solvers["rod"].precice_library == "precice"
+        env._gymprecice.run.prepare()
+        assert env._gymprecice.run.solvers["rod"].precice_library == "precice"
     finally:
         env.close()
 
@@ -200,8 +200,8 @@ def test_the_last_steps_wait_for_the_solvers_to_exit_counts_as_waiting(tmp_path:
 
 
 def test_readers_follow_the_conventions_or_say_which_is_missing(tmp_path: Path) -> None:
-    from gymprecice.core import _TimedReader
     from gymprecice.solver import OutputReader, WaitableOutputReader
+    from gymprecice.timed_reader import TimedReader
     from gymprecice.watchpoints import WatchPointLog
 
     log = WatchPointLog(tmp_path / "precice-Solid-watchpoint-Tip.log")
@@ -216,4 +216,4 @@ def test_readers_follow_the_conventions_or_say_which_is_missing(tmp_path: Path) 
 
     assert isinstance(Plain(), OutputReader) and not isinstance(Plain(), WaitableOutputReader)
     with pytest.raises(AttributeError, match=r"Plain has no wait_until.*WaitableOutputReader"):
-        _TimedReader(Plain(), [0.0]).wait_until(1.0, 5)
+        TimedReader(Plain(), [0.0]).wait_until(1.0, 5)

@@ -228,3 +228,90 @@ def test_doctor_says_what_is_wrong_when_pyprecice_cannot_load_libprecice(prefix)
     assert "gymprecice install" in _pyprecice_advice(
         "ModuleNotFoundError: No module named 'precice'"
     )
+
+
+# -- prerequisites: probed before anything is built ---------------------------------------------
+
+
+def test_missing_prerequisites_are_named_at_once_and_nothing_of_that_step_builds(prefix, tmp_path):
+    from gymprecice.prerequisites import Prerequisite, program
+
+    archive = make_archive(tmp_path / "mirror")
+    absent = program("CMake", "no-such-cmake-xyz", debian=("cmake",))
+    eigen = Prerequisite("Eigen 3", lambda: False, ("libeigen3-dev",))
+    there = Prerequisite("make", lambda: True, ("make",))
+    lib = copying_step(archive, name="lib", prerequisites=(absent, eigen, there))
+    adapter = copying_step(archive, name="adapter", requires=("lib",))
+    other = copying_step(archive, name="other", prerequisites=(there,))
+    lines: list[str] = []
+    results = install([lib, adapter, other], say=lines.append)
+    assert [r.status for r in results] == ["missing", "skipped", "failed"]  # other: no sources
+    # said first, before any step starts: what each lacks and one apt-get line for all
+    assert lines[0].startswith("[install] missing on this machine")
+    assert "lib: CMake, Eigen 3" in lines[0] and "make" not in lines[0].split("\n")[1]
+    assert "sudo apt-get install cmake libeigen3-dev" in lines[0]
+    assert "CMake, Eigen 3" in results[0].detail
+    assert lib.calls == [] and adapter.calls == []
+    assert not (prefix / "logs" / "lib.log").exists()
+
+
+def test_a_step_found_elsewhere_or_done_needs_no_prerequisites(prefix, tmp_path):
+    from gymprecice.prerequisites import Prerequisite
+
+    never = Prerequisite("a compiler", lambda: False)
+    archive = make_archive(tmp_path / "mirror")
+    step = copying_step(archive, found=lambda: "/opt/demo", prerequisites=(never,))
+    lines: list[str] = []
+    [result] = install([step], say=lines.append)
+    assert result.status == "found" and not any("missing" in line for line in lines)
+
+
+def test_prerequisite_probes_look_where_the_compiler_looks(tmp_path, monkeypatch):
+    from gymprecice import prerequisites as pre
+
+    include, lib, bin_ = tmp_path / "include", tmp_path / "lib", tmp_path / "bin"
+    for folder in (include / "toymath" / "Toy", lib, bin_):
+        folder.mkdir(parents=True)
+    monkeypatch.setenv("PATH", str(bin_))
+    monkeypatch.setenv("CPATH", str(include))
+    monkeypatch.setenv("LIBRARY_PATH", str(lib))
+    tool = pre.program("toy tool", "toy-tool-xyz", debian=("toy",))
+    head = pre.header("toy headers", "toy/toy.h")
+    libs = pre.library("toy libraries", "toy_a", "toy_b")
+    eigen = pre.pkg_config("toy math", "no-such-module-xyz", "toymath/Toy/Core")
+    assert pre.missing([tool, head, libs, eigen]) == [tool, head, libs, eigen]
+    script = bin_ / "toy-tool-xyz"
+    script.write_text("#!/bin/sh\n")
+    script.chmod(0o755)
+    (include / "toy").mkdir()
+    (include / "toy" / "toy.h").write_text("")
+    (include / "toymath" / "Toy" / "Core").write_text("")
+    (lib / "libtoy_a.so.1").write_text("")
+    assert pre.missing([tool, head, libs, eigen]) == [libs]  # libtoy_b is still missing
+    (lib / "libtoy_b.so").write_text("")
+    assert pre.missing([tool, head, libs, eigen]) == []
+    assert pre.describe_missing([tool]) == "toy tool (Debian/Ubuntu: sudo apt-get install toy)"
+
+
+def test_install_help_states_the_build_prerequisites():
+    proc = subprocess.run(
+        [sys.executable, "-m", "gymprecice", "install", "--help"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    for piece in ("C++ compiler", "CMake", "pkg-config", "Boost", "Eigen", "libxml2"):
+        assert piece in proc.stdout, piece
+    assert "sudo apt-get install g++ make cmake pkg-config" in proc.stdout
+    assert "setup.sh" not in proc.stdout
+
+
+def test_core_steps_declare_what_precice_needs():
+    from gymprecice.precice_install import core_install_steps
+
+    precice, pyprecice = core_install_steps()
+    titles = " ".join(p.title for p in precice.prerequisites)
+    for piece in ("C++ compiler", "CMake", "pkg-config", "Boost", "Eigen", "libxml2", "make"):
+        assert piece in titles, piece
+    assert any("Python.h" in p.title for p in pyprecice.prerequisites)

@@ -98,7 +98,7 @@ def make_case(root: Path, *, max_time=0.1, flow=None, prefix=(), timeouts=None, 
 
 
 def pids_of(env: Adapter) -> list[int]:
-    session = env._session
+    session = env._gymprecice.run.session
     assert session is not None
     return [session.worker.pid, *(s.pid for s in session.solvers)]
 
@@ -251,7 +251,7 @@ def test_new_run_directory_kills_what_the_old_registry_records(tmp_path):
     env = CylinderEnv(case, 0, run_root=tmp_path / "runs")
     env.reset(seed=0)
     pids = pids_of(env)
-    env._session = None  # the env process "died" without cleaning up
+    env._gymprecice.run.session = None  # the env process "died" without cleaning up
     env._closed = True
     other = CylinderEnv(case, 0, run_root=tmp_path / "runs")
     other.run_dir  # noqa: B018 - replaces env_0
@@ -267,7 +267,7 @@ def test_exception_inside_step_kills_the_episode(tmp_path):
     env = CylinderEnv(case, 0, run_root=tmp_path / "runs")
     env.reset(seed=0)
     pids = pids_of(env)
-    session = env._session
+    session = env._gymprecice.run.session
 
     def interrupt(*args, **kwargs):
         raise KeyboardInterrupt  # Ctrl-C while waiting for preCICE
@@ -276,7 +276,7 @@ def test_exception_inside_step_kills_the_episode(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         env.step(np.zeros(1, dtype=np.float32))
     assert all(gone(p) for p in pids)
-    assert session.closed and env._session is None
+    assert session.closed and env._gymprecice.run.session is None
     env.close()
 
 
@@ -382,7 +382,7 @@ if how == "SystemExit":
     signal.signal(signal.SIGTERM, handler)
 
 def report(env):
-    s = env._session
+    s = env._gymprecice.run.session
     print("PIDS " + json.dumps([s.worker.pid, *(p.pid for p in s.solvers)]), flush=True)
 
 def fire():
@@ -562,7 +562,7 @@ def test_no_stale_step_when_the_solver_is_killed_at_random_instants(tmp_path):
     try:
         while kills < 100:
             env.reset(seed=0)
-            solver = env._session.solvers[0]
+            solver = env._gymprecice.run.session.solvers[0]
             for _ in range(rng.randint(0, 3)):
                 obs, *_ = env.step(np.zeros(1, dtype=np.float32))
                 seen = float(obs[0]) - env.time

@@ -253,3 +253,49 @@ def test_nan_values_from_a_diverging_solver_are_rows_too(log_path: Path) -> None
     rows = WatchPointLog(log_path).read_new()
     assert rows.shape == (2, 7)
     assert np.isnan(rows[1, 3])
+
+
+def test_wait_until_keeps_the_rows_of_a_solver_running_ahead_for_the_next_step(
+    log_path: Path,
+) -> None:
+    # The solver is a window ahead: when the env reads the step ending at 0.01, the row of
+    # 0.02 is already in the file. It belongs to the next step, whenever it was written.
+    write_like_precice(log_path, [0.0, 0.01, 0.02])
+    reader = WatchPointLog(log_path)
+    step = reader.wait_until(0.01, timeout=0.0)
+    np.testing.assert_allclose(step[:, 0], [0.0, 0.01])
+    assert reader.latest_time == pytest.approx(0.01)
+    np.testing.assert_allclose(reader.data[-1], flap_row(0.01))  # .data: what was handed out
+    # asked again for the same step (the reward after the observation): the same rows
+    np.testing.assert_array_equal(reader.wait_until(0.01, timeout=0.0), step)
+    with log_path.open("a") as handle:
+        handle.write(row(flap_row(0.03)))
+    np.testing.assert_allclose(reader.wait_until(0.02, timeout=0.0)[:, 0], [0.02])
+    np.testing.assert_allclose(reader.read_new()[:, 0], [0.03])  # the rest, whatever its time
+
+
+def test_a_step_s_rows_do_not_depend_on_how_far_the_solver_got(log_path: Path) -> None:
+    def steps(lead: int) -> list[list[float]]:
+        """Read steps of 0.01 while the solver is always ``lead`` rows ahead."""
+        times = [round(0.01 * k, 10) for k in range(8)]
+        path = log_path.with_name(f"lead-{lead}.log")
+        path.write_text(header(COLUMNS))
+        reader = WatchPointLog(path)
+        written, out = 0, []
+        for k in range(1, 5):
+            while written < min(len(times), k + 1 + lead):
+                with path.open("a") as handle:
+                    handle.write(row(flap_row(times[written])))
+                written += 1
+            out.append(reader.wait_until(times[k], timeout=0.0)[:, 0].tolist())
+        return out
+
+    assert steps(0) == steps(1) == steps(3)
+    assert steps(2)[1] == pytest.approx([0.02])
+
+
+def test_read_new_then_wait_until_hands_out_no_row_twice(log_path: Path) -> None:
+    write_like_precice(log_path, [0.0, 0.01, 0.02])
+    reader = WatchPointLog(log_path)
+    assert len(reader.read_new()) == 3
+    assert reader.wait_until(0.02, timeout=0.0).shape == (0, 7)

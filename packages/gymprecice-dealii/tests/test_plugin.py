@@ -311,6 +311,8 @@ def test_real_elasticity_starts_on_the_prepared_case(env_dir: Path, tmp_path: Pa
 
     Without its preCICE partner it cannot couple: it parses the file, builds the mesh and
     then waits for the fluid, which is where the test stops it.
+
+    Cost: under a second (elasticity reads its file and builds its mesh, then is stopped).
     """
     if stack_which("elasticity") is None:
         pytest.skip("no elasticity program: run `gymprecice install dealii-adapter`")

@@ -25,6 +25,7 @@ pytestmark = [
 
 
 def test_the_environment_has_debians_dolfin_numpy_1_and_precice_3() -> None:
+    """Cost: about 1 s (one probe of the FEniCS interpreter)."""
     report = solver_env.probe()
     assert report.versions["numpy"].startswith("1.")
     assert report.versions["dolfin"].startswith("2019.")
@@ -33,6 +34,7 @@ def test_the_environment_has_debians_dolfin_numpy_1_and_precice_3() -> None:
 
 
 def test_dry_run_gives_the_scripts_coupling_vertices(make_fenics_solver) -> None:
+    """Cost: about 2 s (a dry run of the FEniCS script: dolfin's import and mesh)."""
     solver = make_fenics_solver(python=Path(solver_env.fenics_python()))
     assert plugin.gymprecice_prepare_case(solver) is True
     geometry = plugin.gymprecice_interface_geometry(solver, "top", "Solid-Mesh")
@@ -43,6 +45,7 @@ def test_dry_run_gives_the_scripts_coupling_vertices(make_fenics_solver) -> None
 
 
 def test_a_script_failing_at_import_is_named_with_its_error(make_fenics_solver) -> None:
+    """Cost: about 2 s (two dry runs of the FEniCS interpreter)."""
     solver = make_fenics_solver(python=Path(solver_env.fenics_python()))
     script = solver.run_dir / "solid.py"
     script.write_text("import mshr_that_is_not_installed\n" + script.read_text())
@@ -55,6 +58,7 @@ def test_a_script_failing_at_import_is_named_with_its_error(make_fenics_solver) 
 def test_gymprecices_own_interpreter_is_refused_for_numpy_2_and_no_dolfin(
     make_fenics_solver,
 ) -> None:
+    """Cost: under a second (two interpreter probes)."""
     import numpy
 
     solver = make_fenics_solver(python=Path(sys.executable))
@@ -67,6 +71,7 @@ def test_gymprecices_own_interpreter_is_refused_for_numpy_2_and_no_dolfin(
 
 
 def test_a_form_that_fails_to_compile_is_explained(make_fenics_solver, tmp_path: Path) -> None:
+    """Cost: about 1 s (one dry run that fails in dolfin's form compiler)."""
     bad = tmp_path / "bad_form.py"
     bad.write_text(
         "from fenics import *\n"

@@ -96,6 +96,7 @@ def test_faces_without_normals_are_refused():
 
 @pytest.mark.openfoam
 def test_jets_on_a_real_blockmesh_cylinder(run, cylinder_case):
+    """Cost: under a second (one blockMesh of the small cylinder)."""
     case = cylinder_case("jets", resolution=1.5)
     run(case, "blockMesh")
     mesh.clear_cache()

@@ -75,6 +75,9 @@ def _litter(run_dir: Path, initial: str) -> None:
 
 @pytest.mark.openfoam
 def test_prepare_then_reset_restores_the_prepared_tree(foam, cylinder_case, solver_for, digest):
+    """Cost: about 1 s (blockMesh, a 0.01 s pre-run and two 0.008 s pimpleFoam episodes of the
+    small cylinder).
+    """
     source = cylinder_case("fluid", end_time=0.03, delta_t=0.002, write_interval=0.004)
     source_before = digest(source)
     solver = solver_for(source, prerun_end_time=0.01)
@@ -107,7 +110,10 @@ def test_prepare_then_reset_restores_the_prepared_tree(foam, cylinder_case, solv
 
 @pytest.mark.openfoam
 def test_check_solver_reports_the_uncoupled_run(foam, cylinder_case, solver_for):
-    """Without a loadable adapter OpenFOAM only warns and runs uncoupled: we must not."""
+    """Without a loadable adapter OpenFOAM only warns and runs uncoupled: we must not.
+
+    Cost: under a second (blockMesh and a few pimpleFoam steps).
+    """
     solver = solver_for(cylinder_case("fluid", end_time=0.004))
     case.prepare_case(solver)
     log = _episode(foam, solver, adapter="unloadable")
@@ -174,6 +180,7 @@ def test_check_log_cases(tmp_path):
 
 @pytest.mark.openfoam
 def test_snapshots_draw_starts_from_a_fixed_split(foam, cylinder_case, solver_for, digest):
+    """Cost: about 2 s (blockMesh and a pre-run writing the snapshots)."""
     solver = solver_for(
         cylinder_case("fluid", end_time=0.03, write_interval=0.004),
         prerun_end_time=0.016,
@@ -224,6 +231,7 @@ def test_snapshots_draw_starts_from_a_fixed_split(foam, cylinder_case, solver_fo
 
 @pytest.mark.openfoam
 def test_parallel_case_prepares_launches_and_resets(foam, cylinder_case, solver_for, digest):
+    """Cost: about 2 s (blockMesh, decomposePar and a two-rank pre-run)."""
     if foam.which("mpirun") is None:
         pytest.skip("mpirun not available")
     solver = solver_for(
@@ -306,6 +314,7 @@ def test_debian_layout_is_recognised(tmp_path, monkeypatch):
 
 @pytest.mark.openfoam
 def test_failed_prerun_names_its_log_and_restores_control_dict(cylinder_case, solver_for):
+    """Cost: under a second (blockMesh and a pimpleFoam that fails at once)."""
     solver = solver_for(cylinder_case("fluid"), prerun_end_time=0.004)
     (solver.run_dir / "system" / "fvSolution").write_text(
         testing.HEADER.format(cls="dictionary", obj="fvSolution") + "solvers {}\n"
@@ -326,9 +335,16 @@ def test_case_without_mesh_or_recipe(tmp_path):
 
 
 @pytest.mark.openfoam
-def test_envs_share_one_prerun_through_the_cache(cylinder_case, solver_for, tmp_path):
-    """Identical cases pre-run once: the others copy the result, even when concurrent."""
+def test_envs_share_one_prerun_through_the_cache(cylinder_case, solver_for, tmp_path, monkeypatch):
+    """Identical cases pre-run once: the others copy the result, even when concurrent.
+
+    Cost: about 1 s (six blockMesh, three 0.01 s and one 0.02 s pre-run of the small
+    cylinder).
+    """
     import threading
+
+    # a cache of its own: the session's may hold this case's pre-run already
+    monkeypatch.setenv("GYMPRECICE_CACHE_DIR", str(tmp_path / "own-session-cache"))
 
     sources = [cylinder_case(f"fluid{i}", end_time=0.03, delta_t=0.002) for i in range(3)]
     solvers = [solver_for(s, prerun_end_time=0.01) for s in sources]

@@ -17,6 +17,12 @@ PRECICE_DICT = testing.precice_dict(
 
 
 class TestOpenFOAMConformance(SolverPluginConformance):
+    """Core's conformance suite on the OpenFOAM plugin, with a small cylinder case.
+
+    Cost: about 3 s for the whole class (a blockMesh of the small cylinder in the tests that
+    prepare a case; the others read only).
+    """
+
     @pytest.fixture
     def plugin(self):
         from gymprecice_openfoam import plugin

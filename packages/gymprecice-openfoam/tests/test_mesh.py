@@ -77,6 +77,7 @@ def _warped_case(tmp_path: Path, name: str, *, fmt: str = "ascii") -> Path:
 @pytest.mark.openfoam
 @pytest.mark.parametrize("fmt", ["ascii", "binary"])
 def test_face_centres_match_openfoam_on_warped_hexes(tmp_path, run, fmt):
+    """Cost: under a second (blockMesh and postProcess of a few warped hexes)."""
     case = _warped_case(tmp_path, fmt, fmt=fmt)
     run(case, "blockMesh")
     run(case, "postProcess", "-func", "writeCellCentres", "-time", "0")
@@ -88,7 +89,10 @@ def test_face_centres_match_openfoam_on_warped_hexes(tmp_path, run, fmt):
 
 @pytest.mark.openfoam
 def test_face_centres_match_openfoam_on_polygons_and_gzip(tmp_path, run):
-    """polyDualMesh makes 4-, 5- and 6-gons; gzip-compressed mesh files are read too."""
+    """polyDualMesh makes 4-, 5- and 6-gons; gzip-compressed mesh files are read too.
+
+    Cost: under a second (blockMesh, polyDualMesh, postProcess).
+    """
     case = _warped_case(tmp_path, "dual")
     run(case, "blockMesh")
     run(case, "polyDualMesh", "-overwrite", "60")
@@ -114,7 +118,10 @@ def test_face_centres_match_openfoam_on_polygons_and_gzip(tmp_path, run):
 
 @pytest.mark.openfoam
 def test_areas_sum_to_openfoams_patch_areas(tmp_path, run):
-    """surfaceFieldValue reports each patch's total |Sf| and the flux of unit fields."""
+    """surfaceFieldValue reports each patch's total |Sf| and the flux of unit fields.
+
+    Cost: under a second (blockMesh and postProcess).
+    """
     case = _warped_case(tmp_path, "areas")
     run(case, "blockMesh")
     run(case, "polyDualMesh", "-overwrite", "60")
@@ -149,6 +156,7 @@ def test_areas_sum_to_openfoams_patch_areas(tmp_path, run):
 
 @pytest.mark.openfoam
 def test_decomposed_case_is_read_rank_by_rank(tmp_path, run, cylinder_case):
+    """Cost: under a second (blockMesh and decomposePar of the small cylinder)."""
     case = cylinder_case("par", decompose=2, split=(1, 2, 1))  # cuts the cylinder in two
     run(case, "blockMesh")
     run(case, "decomposePar", "-force")
@@ -187,7 +195,10 @@ def _rewrite_binary(path: Path, arch: str, lists: list[np.ndarray]) -> None:
 
 @pytest.mark.openfoam
 def test_binary_arch_label64_and_scalar32(tmp_path, run):
-    """foamlib assumes label=32/scalar=64; other archs are read with the header's sizes."""
+    """foamlib assumes label=32/scalar=64; other archs are read with the header's sizes.
+
+    Cost: under a second (blockMesh and foamFormatConvert).
+    """
     case = _warped_case(tmp_path, "arch", fmt="binary")
     run(case, "blockMesh")
     mesh_dir = case / "constant" / "polyMesh"
@@ -307,6 +318,7 @@ interfaces
 
 @pytest.mark.openfoam
 def test_interface_geometry_order_dimensions_and_nodes(tmp_path, run, cylinder_case):
+    """Cost: under a second (one blockMesh of the small cylinder)."""
     case = cylinder_case("geo")
     run(case, "blockMesh")
     run(case, "postProcess", "-func", "writeCellCentres", "-time", "0")
@@ -339,6 +351,7 @@ def test_interface_geometry_order_dimensions_and_nodes(tmp_path, run, cylinder_c
 
 @pytest.mark.openfoam
 def test_missing_patch_names_precice_dict_and_available_patches(tmp_path, run, cylinder_case):
+    """Cost: under a second (one blockMesh of the small cylinder)."""
     case = cylinder_case("bad")
     (case / "system" / "preciceDict").write_text(
         testing.precice_dict({"I": {"mesh": "Fluid-Mesh", "patches": ["jet1", "jet3"]}})

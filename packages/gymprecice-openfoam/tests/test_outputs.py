@@ -187,6 +187,7 @@ def test_wait_until_polls_without_busy_waiting_and_times_out(tmp_path):
 
 @pytest.mark.openfoam
 def test_readers_match_a_real_run_read_while_it_writes(foam, run, cylinder_case):
+    """Cost: about 1 s (blockMesh and a 0.02 s pimpleFoam run of the small cylinder)."""
     case = cylinder_case("live", end_time=0.3, delta_t=0.0005, write_interval=10, adapter=False)
     run(case, "blockMesh")
     program = foam.which("pimpleFoam")
@@ -242,3 +243,35 @@ def test_the_readers_follow_cores_reader_conventions(tmp_path: Path) -> None:
     reader = outputs.TableReader(tmp_path / "postProcessing" / "forces", ["force.dat"])
     assert isinstance(reader, WaitableOutputReader)
     assert reader.start_time is None and reader.latest_time is None
+
+
+def test_wait_until_keeps_rows_past_its_time_for_the_next_step(tmp_path: Path) -> None:
+    """A solver running ahead has written the next step's rows: they wait for that step."""
+    path = tmp_path / "forceCoeffs" / "0" / "coefficient.dat"
+    _write(path, "# Time Cd Cl\n0.01 1.0 0.1\n0.02 2.0 0.2\n0.03 3.0 0.3\n0.04 4.0 0.")
+    reader = outputs.ForceCoeffsReader(tmp_path / "forceCoeffs")
+    step = reader.wait_until(0.02, timeout=0.0)
+    np.testing.assert_array_equal(step.time, [0.01, 0.02])
+    assert step.column("Cd").mean() == 1.5 and step.last.tolist() == [2.0, 0.2]
+    assert reader.latest_time == 0.02
+    assert reader.wait_until(0.02, timeout=0.0) is step  # the reward asks after the observation
+    _write(path, "4\n")  # the half-written 0.04 row is complete now
+    np.testing.assert_array_equal(reader.wait_until(0.03, timeout=0.0).time, [0.03])
+    np.testing.assert_array_equal(reader.read_new().time, [0.04])  # the rest, whatever its time
+    np.testing.assert_array_equal(reader.read_all().time, [0.01, 0.02, 0.03, 0.04])
+
+
+def test_a_step_s_rows_do_not_depend_on_the_solver_s_lead(tmp_path: Path) -> None:
+    def steps(lead: int) -> list[list[float]]:
+        path = tmp_path / f"lead{lead}" / "probes" / "0" / "p"
+        _write(path, PROBE_HEADER)
+        reader = outputs.ProbesReader(path.parent.parent, "p")
+        written, out = 0, []
+        for k in range(1, 5):
+            while written < k + lead:
+                written += 1
+                _write(path, f"{written * 0.005:g} {written} {-written}\n")
+            out.append(reader.wait_until(k * 0.005, timeout=0.0).time.tolist())
+        return out
+
+    assert steps(0) == steps(1) == steps(4) == [[0.005], [0.01], [0.015], [0.02]]

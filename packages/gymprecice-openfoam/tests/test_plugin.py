@@ -142,6 +142,7 @@ def test_doctor_lists_openfoam_and_the_adapter(pm):
 
 @pytest.mark.openfoam
 def test_hooks_drive_a_whole_episode_cycle(pm, cylinder_case, solver_for):
+    """Cost: under a second (blockMesh; the episode's solver is a stand-in)."""
     solver = solver_for(cylinder_case("fluid", end_time=0.01), np=1)
     assert pm.hook.gymprecice_prepare_case(solver=solver) is True
     spec = pm.hook.gymprecice_launch_solver(solver=solver)

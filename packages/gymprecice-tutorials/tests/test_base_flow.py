@@ -98,7 +98,10 @@ def test_main_says_when_the_run_ended_before_the_wake_settled(
 @pytest.mark.skipif(shutil.which("pimpleFoam") is None, reason="OpenFOAM is not on PATH")
 @pytest.mark.timeout(600)
 def test_base_flow_of_the_training_case_with_real_openfoam(tmp_path: Path) -> None:
-    """4 s of the coarse case: the symmetric wake settles below the shedding's drag."""
+    """4 s of the coarse case: the symmetric wake settles below the shedding's drag.
+
+    Cost: about 30 s (pimpleFoam on the symmetric training case until its wake settles).
+    """
     done = subprocess.run(
         [
             sys.executable,

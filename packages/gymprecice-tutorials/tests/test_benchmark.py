@@ -14,10 +14,11 @@ import pytest
 from gymnasium.spaces import Box, Discrete
 
 from gymprecice.cli import main
-from gymprecice_tutorials import benchmark
-from gymprecice_tutorials.benchmark import BenchmarkError, check_algorithm_fits, parse_algorithms
-from gymprecice_tutorials.benchmark_stats import estimate, iqm
-from gymprecice_tutorials.feedback import FeedbackController
+from gymprecice_lab import benchmark
+from gymprecice_lab.benchmark import BenchmarkError, check_algorithm_fits, parse_algorithms
+from gymprecice_lab.benchmark_stats import estimate, iqm
+from gymprecice_lab.command_runs import CommandFailed, run_commands
+from gymprecice_lab.feedback import FeedbackController
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: two PPO seeds of 16 actions on the test double: what every tiny benchmark here trains
@@ -139,12 +140,11 @@ def test_intervals_contain_their_estimate_and_the_tables_agree(bench) -> None:
         assert f"| {c['label']} | {c['kind']} | {c['runs']} |" in markdown
     assert float(rows["PPO"]["mean_Cd_iqm"]) > 0  # the cylinders' mean Cd, beside the objective
     # the fraction of the drag floor that every controller reaches, from the same drag
-    floor = benchmark.find_environment("jet-cylinder-fast").drag_floor
+    floor = benchmark.find_lab_env("jet-cylinder-fast").reference
     for c in results["controllers"]:
         fraction, cd = c["metrics"]["floor_fraction"], c["metrics"]["mean_Cd"]
         assert np.asarray(fraction["scores"]) == pytest.approx(
-            (floor.uncontrolled_cd - np.asarray(cd["scores"]))
-            / (floor.uncontrolled_cd - floor.floor_cd)
+            (floor.uncontrolled - np.asarray(cd["scores"])) / (floor.uncontrolled - floor.floor)
         )
     assert (
         "## floor_fraction" in markdown
@@ -359,20 +359,35 @@ def test_zero_seeds_is_refused(capsys) -> None:
     assert "--seeds: must be at least 1, got 0" in capsys.readouterr().err
 
 
-def test_an_env_without_held_out_starts_is_refused(tmp_path, monkeypatch, capsys) -> None:
-    monkeypatch.setattr(benchmark, "_train_once", _no_training)
-    with pytest.raises(SystemExit) as exc:
+class _Planned(Exception):
+    """Raised where the benchmark would start training: the plan was made."""
+
+
+def test_an_env_without_held_out_starts_is_benchmarked_from_seeds(tmp_path, monkeypatch) -> None:
+    """quickstart names no held-out starts: its starts are the seeds that stand for them
+    (the lab card's default), recorded in benchmark.json before anything trains."""
+
+    def planned(args, plan) -> None:
+        raise _Planned(plan.starts)
+
+    monkeypatch.setattr(benchmark, "_train_seeds", planned)
+    with pytest.raises(_Planned) as exc:
         main(["benchmark", "quickstart", "--double", "--out", str(tmp_path / "b")])
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
-    assert "quickstart has no held-out starts" in err and "jet-cylinder-fast" in err
+    seeds = [f"seed {k}" for k in range(5)]
+    assert exc.value.args[0] == seeds
+    settings = json.loads((tmp_path / "b" / "benchmark.json").read_text())
+    assert settings["held_out_starts"] == seeds
     assert not (tmp_path / "b/train").exists()
 
 
-def test_evaluate_all_starts_on_an_env_without_them_is_refused(tmp_path, capsys) -> None:
-    argv = ["baseline", "quickstart", "--double", "--all-starts", "--out", str(tmp_path / "b")]
-    assert main(argv) == 2
-    assert "quickstart has no held-out starts" in capsys.readouterr().err
+def test_evaluate_all_starts_on_an_env_without_them_runs_its_seeds(tmp_path, capsys) -> None:
+    argv = ["baseline", "quickstart", "--double", "--all-starts", "--episode-time", "0.05"]
+    assert main([*argv, "--seed", "3", "--out", str(tmp_path / "b")]) == 0
+    assert "quickstart has no held-out starts; its starts are seed 3 to seed 7" in (
+        capsys.readouterr().out
+    )
+    summary = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert [e["start_label"] for e in summary["episodes"]] == [f"seed {k}" for k in range(3, 8)]
 
 
 @pytest.mark.parametrize(
@@ -531,7 +546,7 @@ class _Starts(gym.Env):
 
 
 def test_the_eval_freq_env_takes_the_held_out_starts_in_turn() -> None:
-    from gymprecice_tutorials.starts import HeldOutStarts
+    from gymprecice_lab.starts import HeldOutStarts
 
     inner = _Starts()
     env = HeldOutStarts(inner)
@@ -545,7 +560,7 @@ def test_the_eval_freq_env_takes_the_held_out_starts_in_turn() -> None:
 def test_evaluations_npz_survives_a_resume(tmp_path) -> None:
     from types import SimpleNamespace
 
-    from gymprecice_tutorials.evaluation_callback import _keep_evaluations
+    from gymprecice_lab.evaluation_callback import _keep_evaluations
 
     path = tmp_path / "evaluations.npz"
     np.savez(
@@ -574,8 +589,8 @@ def test_commands_failing_in_worker_processes_are_all_reported_not_waited_for(
         )
         for k in range(3)
     ]
-    with pytest.raises(BenchmarkError) as exc:
-        benchmark._run_commands(missing, 2)
+    with pytest.raises(CommandFailed) as exc:
+        run_commands(missing, 2)
     assert exc.value.code == 1
     message = capsys.readouterr().err
     assert all(f"evaluating seed {k}: exit status 1" in message for k in range(3))

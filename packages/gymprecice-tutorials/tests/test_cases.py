@@ -364,6 +364,7 @@ def _run(args: list[str], cwd: Path) -> str:
 @needs_openfoam
 @pytest.mark.parametrize("name", CASE_NAMES)
 def test_case_meshes_and_runs_uncoupled(name: str, tmp_path: Path) -> None:
+    """Cost: about 1 s per case, 3 s for the five (blockMesh and a few pimpleFoam steps each)."""
     spec = recipes.CASES[name]
     steps = 4
     run_spec = replace(spec, end_time=steps * spec.flow.dt)
@@ -423,7 +424,10 @@ def _adapter_installed() -> bool:
 @needs_openfoam
 @pytest.mark.skipif(_adapter_installed(), reason="the adapter is installed: it would wait")
 def test_coupled_case_needs_the_adapter(tmp_path: Path) -> None:
-    """Without make_uncoupled, pimpleFoam must try to load the preCICE adapter."""
+    """Without make_uncoupled, pimpleFoam must try to load the preCICE adapter.
+
+    Cost: under a second (blockMesh and a pimpleFoam that stops at once).
+    """
     spec = replace(recipes.CASES["quickstart"], end_time=5e-4)
     fluid = recipes.write_fluid_case(spec, tmp_path / "fluid-openfoam", coupled=True)
     _run(["blockMesh"], fluid)
@@ -443,6 +447,7 @@ def test_coupled_case_needs_the_adapter(tmp_path: Path) -> None:
 @needs_openfoam
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun is not on PATH")
 def test_jet_case_runs_decomposed(tmp_path: Path) -> None:
+    """Cost: about 3 s (blockMesh, decomposePar and a few two-rank pimpleFoam steps)."""
     spec = replace(recipes.CASES["jet_cylinder"], end_time=2 * 5e-4)
     assert spec.n_procs == 2
     fluid = recipes.write_fluid_case(spec, tmp_path / "fluid-openfoam")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
@@ -12,8 +13,10 @@ from pathlib import Path
 import pytest
 
 from gymprecice.cli import build_parser, main
-from gymprecice_tutorials import manifest, train
-from gymprecice_tutorials.environments import ENVIRONMENTS, find_environment
+from gymprecice_lab import manifest, train
+from gymprecice_lab.lab_env import LabEnvError, find_lab_env, lab_envs
+
+ENVIRONMENTS = {env.name: env for env in lab_envs()}
 
 COMMANDS = ("train", "evaluate", "baseline", "open-loop", "plot")
 
@@ -42,17 +45,19 @@ def test_commands_are_added_to_gymprecice():
 
 
 def test_env_names_and_ids_resolve():
-    assert find_environment("jet-cylinder").env_id == "gymprecice/JetCylinder-v0"
-    assert find_environment("gymprecice/RotatingCylinder-v0").name == "rotating-cylinder"
-    assert find_environment("Quickstart-v0").name == "quickstart"
-    with pytest.raises(KeyError, match="jet-cylinder"):
-        find_environment("cylinder")
+    assert find_lab_env("jet-cylinder").env_id == "gymprecice/JetCylinder-v0"
+    assert find_lab_env("gymprecice/RotatingCylinder-v0").name == "rotating-cylinder"
+    assert find_lab_env("Quickstart-v0").name == "quickstart"
+    with pytest.raises(LabEnvError, match="jet-cylinder"):
+        find_lab_env("cylinder")
 
 
 def test_unknown_environment_is_a_usage_error(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(["train", "no-such-env"]) == 2
-    assert "choose one of jet-cylinder" in capsys.readouterr().err
+    assert "installed packages register: jet-cylinder (gymprecice/JetCylinder-v0)" in (
+        capsys.readouterr().err
+    )
 
 
 def test_bad_env_kwargs_are_refused_by_the_parser(capsys):
@@ -64,8 +69,9 @@ def test_bad_env_kwargs_are_refused_by_the_parser(capsys):
 
 def test_double_needs_a_scripted_flow(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(SystemExit, match="no scripted fake flow"):
+    with pytest.raises(SystemExit, match="lab card field 'double'") as refused:
         main(["baseline", "perpendicular-flap", "--double"])
+    assert refused.value.code == 2 and not (tmp_path / "runs").exists()
     with pytest.raises(SystemExit, match=r"max-time in your precice-config\.xml"):
         main(["baseline", "quickstart", "--case", str(tmp_path), "--episode-time", "1"])
 
@@ -304,7 +310,7 @@ def test_batch_size_larger_than_the_rollout_is_clamped_with_a_warning(capsys):
 
 
 def test_hyperparameters_resolve_defaults_then_file_then_flags(tmp_path):
-    from gymprecice_tutorials import hyperparams as hp
+    from gymprecice_lab import hyperparams as hp
 
     path = tmp_path / "h.yaml"
     path.write_text("gymprecice/Quickstart-v0:\n  n_steps: 40\n  gamma: 0.9\n  policy: MlpPolicy\n")
@@ -330,7 +336,7 @@ def test_td3_explores_with_action_noise_and_a_file_can_choose_it(tmp_path):
     before learning_starts. gymprecice's default is Gaussian noise of 0.1, as RL Zoo's."""
     from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 
-    from gymprecice_tutorials import hyperparams as hp
+    from gymprecice_lab import hyperparams as hp
 
     noise = hp.model_kwargs(hp.resolve("td3", {}, {}), action_dim=2)["action_noise"]
     assert isinstance(noise, NormalActionNoise)
@@ -354,7 +360,7 @@ def test_td3_explores_with_action_noise_and_a_file_can_choose_it(tmp_path):
 
 
 def test_only_the_newest_checkpoints_and_the_best_are_kept(tmp_path):
-    from gymprecice_tutorials.callbacks import BEST_NAME, prune_checkpoints
+    from gymprecice_lab.callbacks import BEST_NAME, prune_checkpoints
 
     for steps in (10, 20, 30, 40, 50):
         (tmp_path / f"ppo_{steps}_steps.zip").write_text("m")
@@ -381,18 +387,16 @@ def test_manifest_lists_pyprecice_only_when_importable(tmp_path):
     assert data["source"]["identified_by"] in ("git", "packages")
 
 
-def test_plugin_and_commands_do_not_import_each_other():
+def test_the_tutorials_plugin_imports_no_lab_module():
+    """Loaded on every ``import gymprecice``: its cards come from core, its commands from
+    the lab's own plugin."""
     code = (
-        "import sys, importlib; importlib.import_module(sys.argv[1]); "
-        "print(sorted(m for m in sys.modules if m.startswith('gymprecice_tutorials')))"
+        "import sys, importlib; importlib.import_module('gymprecice_tutorials.plugin'); "
+        "print(sorted(m for m in sys.modules if m.startswith('gymprecice_lab')))"
     )
-    for module, absent in (
-        ("gymprecice_tutorials.plugin", "gymprecice_tutorials.cli"),
-        ("gymprecice_tutorials.cli", "gymprecice_tutorials.plugin"),
-        ("gymprecice_tutorials.train", "gymprecice_tutorials.plugin"),
-    ):
-        proc = subprocess.run(
-            [sys.executable, "-c", code, module], capture_output=True, text=True, timeout=120
-        )
-        assert proc.returncode == 0, proc.stderr
-        assert absent not in proc.stdout, (module, proc.stdout)
+    env = {**os.environ, "GYMPRECICE_DISABLE_PLUGINS": "1"}
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"

@@ -25,13 +25,13 @@ from gymprecice.config import load_config
 from gymprecice.precice_xml import load_precice_config
 from gymprecice_openfoam.outputs import ForceCoeffsReader, ProbesReader
 from gymprecice_tutorials import fake_flow, recipes
+from gymprecice_tutorials.cylinder_geometry import patch_geometry
 from gymprecice_tutorials.environments import ENVIRONMENTS
 from gymprecice_tutorials.jet_cylinder.environment import (
     MAX_FLOW_RATE,
     JetCylinderEnv,
     materialise_case,
 )
-from gymprecice_tutorials.jet_cylinder.geometry import patch_geometry
 from gymprecice_tutorials.rotating_cylinder.environment import RotatingCylinderEnv
 
 CYLINDER_IDS = [
@@ -97,9 +97,9 @@ def _double(env_id: str, tmp_path: Path, **kwargs) -> gym.Env:
 
 def test_ids_are_registered_with_lazy_entry_points(monkeypatch):
     monkeypatch.delenv("GYMPRECICE_DISABLE_PLUGINS")
-    for info in ENVIRONMENTS.values():
-        spec = gym.spec(info.env_id)
-        assert spec.entry_point == info.entry_point
+    for env_id, entry_point, _card in ENVIRONMENTS:
+        spec = gym.spec(env_id)
+        assert spec.entry_point == entry_point
         assert isinstance(spec.entry_point, str)
     # importing gymprecice must not import the env modules, torch or matplotlib
     code = (
@@ -112,7 +112,7 @@ def test_ids_are_registered_with_lazy_entry_points(monkeypatch):
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout.splitlines()
-    assert eval(out[0]) == sorted(e.env_id for e in ENVIRONMENTS.values())
+    assert eval(out[0]) == sorted(env_id for env_id, _, _ in ENVIRONMENTS)
     assert eval(out[1]) == []
 
 
@@ -407,6 +407,9 @@ def _precice_import_error() -> str | None:
 
 @pytest.mark.precice
 def test_an_episode_on_real_precice_matches_the_double(tmp_path, closing):
+    """Cost: about 2 s (one short episode with real preCICE, one with the double, the scripted
+    flow).
+    """
     error = _precice_import_error()
     if error is not None:
         pytest.skip(f"cannot import precice: {error}")
@@ -459,7 +462,10 @@ def _by_angle(geometry, centre) -> np.ndarray:
 )
 def test_recipe_mesh_patches_match_the_analytic_geometry(tmp_path, recipe, patches):
     """blockMesh's patches are the faces the double's flow and the env's actuators assume,
-    and the jet actuator carries exactly Q through the real mesh's faces."""
+    and the jet actuator carries exactly Q through the real mesh's faces.
+
+    Cost: under a second per recipe (one blockMesh).
+    """
     from gymprecice_openfoam import mesh
     from gymprecice_openfoam.actuators import jet_velocity
     from gymprecice_openfoam.installation import run_tool

@@ -17,7 +17,7 @@ import pytest
 from gymprecice.precice_xml import load_precice_config
 from gymprecice.testing.conformance import make_solver_context
 from gymprecice_fenics import plugin as fenics_plugin
-from gymprecice_tutorials.environments import find_environment
+from gymprecice_lab.lab_env import find_lab_env
 from gymprecice_tutorials.heated_plate import CASE_DIR
 from gymprecice_tutorials.heated_plate.environment import (
     EVAL_STARTS,
@@ -100,7 +100,7 @@ def test_a_controller_writing_heat_flux_where_the_fenics_plate_reads_temperature
 
 
 def test_heated_plate_is_registered_for_the_commands() -> None:
-    info = find_environment("HeatedPlate-v0")
+    info = find_lab_env("HeatedPlate-v0")
     assert info.name == "heated-plate"
     assert info.objective == "tracking_error"
     assert dict(info.baseline_kwargs) == {"uncontrolled": True}

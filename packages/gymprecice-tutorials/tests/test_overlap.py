@@ -11,8 +11,8 @@ import pytest
 from stable_baselines3 import SAC, TD3
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper
 
-from gymprecice_tutorials import hyperparams as hp
-from gymprecice_tutorials.overlap import OverlappedUpdates, overlapping
+from gymprecice_lab import hyperparams as hp
+from gymprecice_lab.overlap import OverlappedUpdates, overlapping
 
 
 class _Journal(VecEnvWrapper):
@@ -127,7 +127,7 @@ def test_torch_threads_is_a_whole_number_of_threads(tmp_path):
     assert params["torch_threads"] == 1 and "torch_threads" not in hp.model_kwargs(params)
     import torch
 
-    from gymprecice_tutorials.train import learner_threads
+    from gymprecice_lab.train import learner_threads
 
     before = torch.get_num_threads()
     try:

@@ -229,6 +229,7 @@ def meshed_fluid(tmp_path: Path) -> tuple[Path, dict[str, str]]:
 
 @pytest.mark.openfoam
 def test_blockmesh_builds_the_channel_with_the_flap(meshed_fluid) -> None:
+    """Cost: under a second (the flap channel's blockMesh, shared by the module)."""
     case, env = meshed_fluid
     boundary = FoamFile(case / "constant/polyMesh/boundary")[None]
     patches = {name: dict(entry) for name, entry in boundary}
@@ -251,7 +252,10 @@ def test_blockmesh_builds_the_channel_with_the_flap(meshed_fluid) -> None:
 @pytest.mark.openfoam
 @pytest.mark.slow
 def test_fluid_runs_uncoupled_on_its_moving_mesh(meshed_fluid) -> None:
-    """The dictionaries are complete for pimpleFoam with a dynamic mesh (adapter removed)."""
+    """The dictionaries are complete for pimpleFoam with a dynamic mesh (adapter removed).
+
+    Cost: under a second (a few pimpleFoam steps on the shared mesh).
+    """
     case, env = meshed_fluid
     control = case / "system/controlDict"
     text = control.read_text()

@@ -20,8 +20,8 @@ import pytest
 from gymprecice.config import load_config
 from gymprecice.precice_xml import load_precice_config
 from gymprecice.watchpoints import WatchPointLog
+from gymprecice_lab.lab_env import find_lab_env
 from gymprecice_tutorials.case_files import write_case_files
-from gymprecice_tutorials.environments import find_environment
 from gymprecice_tutorials.perpendicular_flap import double
 from gymprecice_tutorials.perpendicular_flap.environment import jet_profile
 from gymprecice_tutorials.perpendicular_flap.fast import (
@@ -169,7 +169,7 @@ def test_double_refuses_a_case_of_ones_own(tmp_path: Path) -> None:
 
 
 def test_a_short_training_run_on_the_double_completes(tmp_path: Path) -> None:
-    assert find_environment("perpendicular-flap-fast").double
+    assert find_lab_env("perpendicular-flap-fast").double
     command = [sys.executable, "-m", "gymprecice", "train", "perpendicular-flap-fast"]
     command += ["--double", "--vec-env", "dummy", "--n-envs", "1", "--n-steps", "8"]
     command += ["--batch-size", "8", "--n-epochs", "1", "--net", "8,8", "--timesteps", "8"]

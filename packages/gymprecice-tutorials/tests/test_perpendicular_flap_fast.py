@@ -17,8 +17,8 @@ from gymprecice.solver import SolverContext
 from gymprecice.watchpoints import WatchPointLog
 from gymprecice_dealii.plugin import check_against_precice
 from gymprecice_dealii.prm import ElasticityParameters
+from gymprecice_lab.lab_env import find_lab_env
 from gymprecice_tutorials.case_files import write_case_files
-from gymprecice_tutorials.environments import find_environment
 from gymprecice_tutorials.perpendicular_flap import fast, training_case
 from gymprecice_tutorials.perpendicular_flap.fast import (
     EVAL_GUSTS,
@@ -116,7 +116,7 @@ def env(tmp_path: Path):
 
 
 def test_env_is_registered_with_its_objective_and_uncontrolled_flap() -> None:
-    info = find_environment("gymprecice/PerpendicularFlapFast-v0")
+    info = find_lab_env("gymprecice/PerpendicularFlapFast-v0")
     assert info.name == "perpendicular-flap-fast"
     assert info.objective == "mean_tip_displacement"
     assert dict(info.baseline_kwargs) == {"uncontrolled": True}

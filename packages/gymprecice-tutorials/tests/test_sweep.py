@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from gymnasium.spaces import Box
 
+from gymprecice.card import CardError, load_object
 from gymprecice.cli import main
-from gymprecice_tutorials import evaluate
-from gymprecice_tutorials.feedback import load_law
+from gymprecice_lab import evaluate
+from gymprecice_lab.sweep import SweepResult, best, constant_controller, parse_grid
 from gymprecice_tutorials.heated_plate.pid import PID_LAW
-from gymprecice_tutorials.sweep import SweepResult, best, constant_controller, parse_grid
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -201,9 +201,9 @@ def test_a_feedback_law_parses_its_grid_and_names_its_points() -> None:
     ]
     assert law.label({"kp": 3.0, "ki": 50.0, "kd": 1.0}) == "pid-kp3-ki50-kd1"
     assert law.parse_grid(law.grid_text(grid)) == grid
-    assert load_law("gymprecice_tutorials.heated_plate.pid:PID_LAW") is law
-    with pytest.raises(TypeError, match="not a FeedbackLaw"):
-        load_law("gymprecice_tutorials.heated_plate.pid:PIDController")
+    assert load_object("gymprecice_tutorials.heated_plate.pid:PID_LAW", "feedback_law") is law
+    with pytest.raises(CardError, match="not a gymprecice\\.card\\.FeedbackLaw"):
+        load_object("gymprecice_tutorials.heated_plate.pid:PIDController", "feedback_law")
     heater = law.build(Box(300.0, 340.0, shape=(1,)), {"kp": 3, "ki": 0, "kd": 0})
     assert heater(np.array([1.0, 0.0, 0.0, 0.0]), 0.0)[0] == pytest.approx(307.0)
     with pytest.raises(ValueError, match="heater's range"):

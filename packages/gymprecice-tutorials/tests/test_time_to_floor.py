@@ -12,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice_tutorials.environments import FAST_CYLINDER_FLOOR, DragFloor
-from gymprecice_tutorials.evaluate import floor_metrics
-from gymprecice_tutorials.time_to_floor import checkpoints, median_time
+from gymprecice.card import Reference
+from gymprecice_lab.evaluate import floor_metrics
+from gymprecice_lab.time_to_floor import checkpoints, median_time
+from gymprecice_tutorials.environments import FAST_CYLINDER_FLOOR
 
 
 def _cli(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
@@ -99,7 +100,7 @@ def test_the_scan_stops_at_the_first_checkpoint_reaching_the_highest_fraction(ru
 def test_bad_input_is_refused_with_the_fix(run: Path) -> None:
     proc = _cli(run.parent, "time-to-floor", str(run), "--env", "quickstart", "--double")
     assert proc.returncode == 2
-    assert "has no measured drag floor" in proc.stderr and "jet-cylinder-fast" in proc.stderr
+    assert "needs the lab card field 'reference' of gymprecice/Quickstart-v0" in proc.stderr
     proc = _cli(run.parent, "time-to-floor", str(run), "--double", "--eval-time", "1")
     assert proc.returncode == 2 and "leaves no settled flow" in proc.stderr
     empty = run.parent / "empty"
@@ -119,7 +120,7 @@ def test_the_median_over_runs_has_an_interval_that_stays_open_for_runs_never_rea
 
 
 def test_floor_metrics_take_the_settled_drag_after_the_transient() -> None:
-    floor = DragFloor(uncontrolled_cd=3.0, floor_cd=2.0, settle_time=2.0)
+    floor = Reference(metric="Cd", uncontrolled=3.0, floor=2.0, settle_time=2.0)
     t0 = 5.0
     rows = [(0, t0 + 0.5 * k, 3.0 if k < 4 else 2.2, 0.0) for k in range(1, 9)]
     metrics = floor_metrics(rows, t0, floor)
@@ -128,13 +129,13 @@ def test_floor_metrics_take_the_settled_drag_after_the_transient() -> None:
     assert metrics["settled_floor_fraction"] == pytest.approx(0.8)
     assert metrics["floor_fraction"] == pytest.approx((3.0 - (3 * 3.0 + 5 * 2.2) / 8) / 1.0)
     assert floor_metrics([], t0, floor) == {}
-    assert FAST_CYLINDER_FLOOR.fraction(FAST_CYLINDER_FLOOR.floor_cd) == pytest.approx(1.0)
+    assert FAST_CYLINDER_FLOOR.fraction(FAST_CYLINDER_FLOOR.floor) == pytest.approx(1.0)
 
 
 def test_a_wrapper_passes_the_typed_command_start_and_nonsense_is_ignored(monkeypatch) -> None:
     import time
 
-    from gymprecice_tutorials.train import command_started_at
+    from gymprecice_lab.train import command_started_at
 
     monkeypatch.setenv("GYMPRECICE_STARTED_AT", str(time.time() - 30))
     assert time.time() - command_started_at() == pytest.approx(30, abs=5)

@@ -18,12 +18,13 @@ import signal
 import subprocess
 import sys
 import time
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from gymprecice_tutorials import plots
+from gymprecice_lab import plots
 from gymprecice_tutorials.jet_cylinder.environment import MAX_FLOW_RATE
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -529,7 +530,7 @@ def test_sac_with_a_hyperparameter_file_normalize_and_evaluation(tmp_path):
     from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from gymprecice_tutorials.envs import load_policy
+    from gymprecice_lab.envs import load_policy
 
     venv, model = load_policy(
         run, "quickstart", double=True, episode_time=0.1, run_root=str(tmp_path / "helper")
@@ -586,7 +587,7 @@ def test_one_interpolated_window_per_action_is_drawn_as_a_ramp(tmp_path):
     (tmp_path / "manifest.json").write_text(json.dumps({"case_dir": str(case)}))
     config = {"precice": {"config_file": "precice-config.xml"}, "actions": {"windows": 1}}
     (case / "gymprecice-config.json").write_text(json.dumps(config))
-    packaged = Path(plots.__file__).parent / "cases" / "jet_cylinder_fast" / "precice-config.xml"
+    packaged = files("gymprecice_tutorials") / "cases" / "jet_cylinder_fast" / "precice-config.xml"
     xml = packaged.read_text()
     assert 'name="Velocity" waveform-degree="1"' in xml  # the Controller writes Velocity
     (case / "precice-config.xml").write_text(xml)

@@ -14,6 +14,7 @@ printed.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import platform
@@ -26,9 +27,10 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from gymprecice import __version__
+from gymprecice.distribution import CLASH_FIX, core_version, name_clash
 from gymprecice.errors import GymPreciceError
 from gymprecice.install_command import add_install_parser, stack_checks
+from gymprecice.optional import missing_command, missing_dependency
 from gymprecice.plugins import (
     DISABLE_ENV_VAR,
     GymPrecicePluginManager,
@@ -42,6 +44,11 @@ from gymprecice.solver import DoctorCheck
 from gymprecice.stack import stack_prefix
 
 __all__ = ["build_parser", "doctor_report", "main"]
+
+# Read from the metadata: with another distribution's gymprecice/__init__.py in place (see
+# gymprecice.distribution), `from gymprecice import __version__` fails, and `doctor` must
+# still run to say so.
+__version__ = core_version()
 
 MIN_PYTHON = (3, 10)
 PRECICE_ADVICE = (
@@ -107,6 +114,12 @@ def _warn(message: str) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 success, 1 failure, 2 usage)."""
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    elsewhere = None if command in _commands(parser) else missing_command(command or "")
+    if elsewhere is not None:
+        print(f"gymprecice: error: {elsewhere}", file=sys.stderr)
+        return 2
     args = parser.parse_args(argv)
     if args.func is None:
         parser.print_help(sys.stderr)
@@ -116,9 +129,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     except GymPreciceError as exc:
         print(f"gymprecice {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except ModuleNotFoundError as exc:
+        # An optional dependency the command needs (a plugin's extra): one line naming the
+        # install, exit 2 as for a usage error. Any other missing module is a bug: re-raised.
+        message = missing_dependency(exc, _owner_module(args.func))
+        if message is None:
+            raise
+        print(f"gymprecice {args.command}: error: {message}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         return 130
     return 0 if status is None else int(status)
+
+
+def _commands(parser: argparse.ArgumentParser) -> set[str]:
+    return {
+        name
+        for action in parser._actions
+        if isinstance(action, argparse._SubParsersAction)
+        for name in action.choices
+    }
+
+
+def _owner_module(func: Any) -> str | None:
+    """The module that defines a command's function (a plugin's), unwrapping partials."""
+    while isinstance(func, functools.partial):
+        func = func.func
+    return getattr(func, "__module__", None)
 
 
 # -- plugins ---------------------------------------------------------------------------------
@@ -315,8 +352,14 @@ def doctor_report() -> dict[str, Any]:
 
 
 def core_checks() -> list[DoctorCheck]:
-    """What core itself looks for: Python and pyprecice + preCICE (solvers are the plugins')."""
-    return [_check_python(), _check_pyprecice()]
+    """What core itself looks for: Python, who owns the ``gymprecice`` package, and pyprecice
+    + preCICE (solvers are the plugins')."""
+    checks = [_check_python()]
+    clash = name_clash()
+    if clash is not None:
+        checks.append(DoctorCheck("gymprecice package", False, clash, CLASH_FIX, True))
+    checks.append(_check_pyprecice())
+    return checks
 
 
 def _check_python() -> DoctorCheck:

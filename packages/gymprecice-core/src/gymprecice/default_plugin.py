@@ -9,7 +9,7 @@
 
         {"run_script": "run.sh", "reset_script": "reset.sh", "prerun_script": "prerun.sh",
          "interpreter": null, "prepare_timeout": null, "reset_timeout": 600,
-         "env": {}, "log_name": "solver.log"}
+         "env": {}, "log_name": "solver.log", "divergence_patterns": []}
 
     Scripts are executed directly, honouring their ``#!`` line, as the paper's
     ``./run.sh`` did. A script without the executable bit is an error with the fix
@@ -25,7 +25,8 @@
         {"argv": ["{python}", "-m", "gymprecice.testing.partner", "--participant",
                   "{participant}", "--config", "{precice_config}"],
          "prepare_argv": [...], "reset_argv": [...],
-         "prepare_timeout": null, "reset_timeout": 600, "env": {}, "log_name": "solver.log"}
+         "prepare_timeout": null, "reset_timeout": 600, "env": {}, "log_name": "solver.log",
+         "divergence_patterns": []}
 
     ``prepare_argv`` runs once per env, ``reset_argv`` before every episode. Placeholders
     in any argument: ``{python}`` (this interpreter, so the same virtual environment runs
@@ -38,6 +39,18 @@ line (while the solver runs, or after it failed) means the solver diverged under
 agent's actions, e.g. ``["Floating point exception", "Courant Number .* max: [0-9]{3,}"]``;
 see :func:`gymprecice.hookspecs.gymprecice_detect_divergence`. None by default: a generic
 program's failures are faults unless the case says otherwise.
+
+Outputs: core itself opens a participant's preCICE watch point for a solver of any kind,
+these two included (``self.open_output("solid", "watchpoint", point="Flap-Tip")``, see
+:func:`gymprecice_open_output`). A solver's other files are read by a plugin's readers:
+the option ``"outputs"`` names the plugin (``"openfoam"`` for OpenFOAM-format
+function-object output, ``"dealii"`` for a watch-point log the program writes itself).
+
+Both kinds hand core fields to draw (``env.render()``) through files: when the env renders,
+the launched program finds ``GYMPRECICE_FIELDS`` (comma-separated field names) in its
+environment and writes ``gymprecice-fields/<name>.npz`` in its working directory at every
+time window (:func:`gymprecice.fields.write_field_file`); reset removes them. Without the
+variable it must write nothing, so an env that does not render costs nothing.
 
 Both kinds export ``GYMPRECICE_ENV_INDEX``, ``GYMPRECICE_ENV_DIR``, ``GYMPRECICE_RUN_DIR``,
 ``GYMPRECICE_SOLVER``, ``GYMPRECICE_PARTICIPANT``, ``GYMPRECICE_PRECICE_CONFIG`` and, for
@@ -62,12 +75,14 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from gymprecice import watchpoints
 from gymprecice.divergence import first_match
 from gymprecice.errors import CaseError, ConfigError
+from gymprecice.fields import FIELDS_DIR, FIELDS_ENV_VAR, Field, field_file, read_field_file
 from gymprecice.hookspecs import hookimpl
 from gymprecice.options import refuse_unknown_options
 from gymprecice.precice_install import core_install_steps
-from gymprecice.solver import DoctorCheck, LaunchSpec, SolverContext
+from gymprecice.solver import DoctorCheck, LaunchSpec, OutputReader, SolverContext
 from gymprecice.stack import InstallStep
 
 SCRIPT = "script"
@@ -177,6 +192,9 @@ def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
 
 @hookimpl(trylast=True)
 def gymprecice_reset_case(solver: SolverContext) -> bool | None:
+    if solver.kind in KINDS:
+        # the last episode's fields must never be drawn as this one's
+        shutil.rmtree(solver.run_dir / FIELDS_DIR, ignore_errors=True)
     if solver.kind == SCRIPT:
         if solver.options.get("reset_script"):
             argv = _script_argv(solver, "reset_script")
@@ -198,12 +216,36 @@ def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
         argv = _command_argv(solver, "argv", required=True)
     else:
         return None
+    env = _environment(solver)
+    if solver.fields:
+        env[FIELDS_ENV_VAR] = ",".join(solver.fields)
     return LaunchSpec(
         argv=argv,
         cwd=solver.run_dir,
-        env=_environment(solver),
+        env=env,
         log_name=str(solver.options.get("log_name", "solver.log")),
     )
+
+
+@hookimpl(trylast=True)
+def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Field | None:
+    """The program's latest ``gymprecice-fields/<name>.npz``; ``None`` until it exists.
+
+    The program was told which fields to write (``GYMPRECICE_FIELDS``); one that does
+    not know a field says so in its log and exits, which fails the reset.
+    """
+    if solver.kind not in KINDS:
+        return None
+    if name not in solver.fields:
+        raise ConfigError(
+            f"{solver.describe()}: field {name!r} was not requested from the program at "
+            f"reset (it writes {list(solver.fields)}); add it to the env's render_fields"
+        )
+    path = field_file(solver.run_dir, name)
+    try:
+        return read_field_file(path, name)
+    except FileNotFoundError:
+        return None
 
 
 @hookimpl(trylast=True)
@@ -248,6 +290,33 @@ def divergence_patterns(solver: SolverContext) -> list[re.Pattern[str]]:
                 f"({exc}); fix or remove it"
             ) from None
     return compiled
+
+
+@hookimpl(tryfirst=True)
+def gymprecice_open_output(
+    solver: SolverContext, name: str, options: Mapping[str, Any]
+) -> OutputReader | None:
+    """A participant's preCICE watch point, for a solver of any kind (core's own output).
+
+    preCICE writes the log from ``precice-config.xml`` whatever the solver is, so reading
+    it needs no solver plugin (:func:`gymprecice.watchpoints.open_watch_point`). Asked
+    first, before the solvers' plugins, so a plugin that does not know the name cannot
+    refuse it. Core steps aside only where the solver's plugin may know better: a solver
+    of a plugin's kind whose participant only its own files name (deal.II's
+    ``parameters.prm``), and a solver with ``options.outputs`` whose point preCICE does
+    not write (a stand-in that writes the log itself, read by the plugin it names).
+    Every other output is the plugins' to open.
+    """
+    if name != watchpoints.OUTPUT:
+        return None
+    point, participant = watchpoints.watch_point_options(solver, options)
+    if solver.options.get("outputs") and (
+        participant is None or watchpoints.undeclared_watch_point(solver, participant, point)
+    ):
+        return None
+    if participant is None and solver.kind not in KINDS:
+        return None
+    return watchpoints.open_watch_point(solver, options)
 
 
 @hookimpl(trylast=True)

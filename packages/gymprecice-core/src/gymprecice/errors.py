@@ -44,14 +44,17 @@ class SolverError(GymPreciceError, RuntimeError):
         log_file: str | None = None,
         error_lines: Sequence[str] | None = None,
     ) -> None:
+        from gymprecice.logscan import error_lines as scan
+        from gymprecice.logscan import without_colours
+
+        # A tail is read for a person, in a message or a log file: no colour codes.
+        log_tail = without_colours(log_tail)
         self.env_index = env_index
         self.solver = solver
         self.returncode = returncode
         self.log_tail = log_tail
         self.log_file = log_file
         if error_lines is None:  # the solver's own error lines, wherever they are in its log
-            from gymprecice.logscan import error_lines as scan
-
             error_lines = scan(log_file)
         self.error_lines = tuple(error_lines)
         text = message

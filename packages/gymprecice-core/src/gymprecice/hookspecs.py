@@ -29,7 +29,13 @@ and, in its ``pyproject.toml``::
 
 A plugin needs ``gymprecice_solver_kinds``, ``gymprecice_reset_case`` and
 ``gymprecice_launch_solver``; every other hook is optional and has a default, stated in
-its spec. Core never names a solver; plugins never touch preCICE: core owns the coupling
+its spec. Everything else a plugin needs comes from this module too: the value types
+(``LaunchSpec``, ``InterfaceGeometry``, ``SolverContext``, ``DoctorCheck``,
+``InstallStep``, the reader protocols), the errors to raise (``CaseError``,
+``ConfigError``), the option checks (``refuse_unknown_options``,
+``unknown_option_problems``), the watch-point reader (``WatchPointLog``,
+``open_watch_point``, ``watch_point_file_name``; :mod:`gymprecice.watchpoints`) and the
+split of a reader's rows at a step's end (``rows_through``; :mod:`gymprecice.readers`). Core never names a solver; plugins never touch preCICE: core owns the coupling
 and every process, plugins only prepare files and describe what to run.
 
 **What ``None`` means.** Every hook asked about one solver starts with ``if solver.kind
@@ -50,9 +56,9 @@ the call that ran the hook: ``gymprecice_validate_case`` from ``Adapter(...)`` a
 ``gymprecice_check_solver`` from ``reset()``; ``gymprecice_detect_divergence`` from
 ``reset()`` and ``step()``; ``gymprecice_interface_geometry`` from the first
 ``reset()`` (or ``env.interface_geometry``); ``gymprecice_open_output`` from
-``env.open_output`` in the env's own code. A problem *returned* by
-``gymprecice_validate_case`` becomes a ``ConfigError`` naming the configuration file and
-the solver; one returned by ``gymprecice_check_solver`` fails the reset (or joins the
+``env.open_output`` in the env's own code; ``gymprecice_read_field`` from
+``env.render()``. A problem *returned* by ``gymprecice_validate_case`` becomes a
+``ConfigError`` naming the configuration file and the solver; one returned by ``gymprecice_check_solver`` fails the reset (or joins the
 crash report of an exited solver) as a :class:`~gymprecice.errors.SolverCrashedError`
 that names the solver and the env, so the message itself need not.
 """
@@ -64,7 +70,10 @@ from typing import Any
 
 import pluggy
 
+from gymprecice.errors import CaseError, ConfigError
+from gymprecice.fields import Field
 from gymprecice.options import refuse_unknown_options, unknown_option_problems
+from gymprecice.readers import rows_through
 from gymprecice.solver import (
     LIBRARY_ENV_VAR,
     TEST_DOUBLE_LIBRARY,
@@ -76,6 +85,7 @@ from gymprecice.solver import (
     WaitableOutputReader,
 )
 from gymprecice.stack import InstallStep
+from gymprecice.watchpoints import WatchPointLog, open_watch_point, watch_point_file_name
 
 PROJECT_NAME = "gymprecice"
 
@@ -85,17 +95,24 @@ hookimpl = pluggy.HookimplMarker(PROJECT_NAME)
 __all__ = [
     "LIBRARY_ENV_VAR",
     "TEST_DOUBLE_LIBRARY",
+    "CaseError",
+    "ConfigError",
     "DoctorCheck",
+    "Field",
     "InstallStep",
     "InterfaceGeometry",
     "LaunchSpec",
     "OutputReader",
     "SolverContext",
     "WaitableOutputReader",
+    "WatchPointLog",
     "hookimpl",
     "hookspec",
+    "open_watch_point",
     "refuse_unknown_options",
+    "rows_through",
     "unknown_option_problems",
+    "watch_point_file_name",
 ]
 
 
@@ -236,10 +253,41 @@ def gymprecice_open_output(
     readers at every reset and at close. Return an
     :class:`~gymprecice.solver.OutputReader`, preferably a
     :class:`~gymprecice.solver.WaitableOutputReader` (``start_time``, ``latest_time``,
-    ``wait_until``), which env code relies on. For this plugin's kind, raise
-    :class:`~gymprecice.errors.ConfigError` listing the outputs and options it knows when
-    ``name`` or ``options`` is unknown. ``None`` means "not my solver"; when no plugin
-    answers, ``open_output`` raises a ``ConfigError``.
+    ``wait_until`` handing out the rows of one step), which env code relies on. For this
+    plugin's kind, raise :class:`~gymprecice.errors.ConfigError` listing the outputs and
+    options it knows when ``name`` or ``options`` is unknown. ``None`` means "not my
+    solver"; when no plugin answers, ``open_output`` raises a ``ConfigError``.
+
+    ``"watchpoint"`` is core's: preCICE writes a participant's watch point from
+    ``precice-config.xml`` whatever the solver, so core answers it for every solver,
+    before any plugin is asked (:func:`~gymprecice.watchpoints.open_watch_point`). A
+    plugin is asked for it only where core steps aside: its solver's participant is
+    named nowhere in gymprecice's configuration, or the solver has ``options.outputs``
+    and writes the log itself.
+    """
+
+
+@hookspec(firstresult=True)
+def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Field | None:
+    """Hand core field ``name`` of the solver, as written at coupling time ``time``.
+
+    Called by ``env.render()`` (``render_mode="rgb_array"``) for every field the env draws
+    (``Adapter.render_fields``); core draws it (:mod:`gymprecice.rendering`). ``time`` is
+    the coupling time in seconds since the episode's start (add the solver's own start
+    time where it has one). Return a :class:`~gymprecice.fields.Field`: the newest
+    snapshot written at or before ``time``, with its own ``time``. While the solver has
+    not written ``time`` yet (it may be a moment behind the coupling), return the older
+    snapshot, or ``None`` when there is none: core asks again, watching the solvers,
+    until the snapshot's time reaches ``time`` or the progress timeout passes. Raise
+    :class:`~gymprecice.errors.ConfigError` naming the fields the solver writes when
+    ``name`` is not one of them. Only read files; never write.
+
+    What to write, and when, is the plugin's to decide at ``gymprecice_reset_case`` (or
+    ``gymprecice_launch_solver``): ``solver.fields`` names the fields the env will ask for
+    (``()``: the env does not render, so the solver writes nothing extra) and
+    ``solver.field_interval`` the coupling time between two frames (one action). ``None``
+    means "not my kind"; when no plugin answers, ``render()`` raises a
+    :class:`~gymprecice.errors.ConfigError` naming the solver's plugin and this hook.
     """
 
 
@@ -275,8 +323,12 @@ def gymprecice_register_commands(subparsers: Any) -> None:
 
 @hookspec
 def gymprecice_register_environments(register: Callable[..., None]) -> None:
-    """Register Gymnasium environments: ``register(id, entry_point, **kwargs)``.
+    """Register Gymnasium environments: ``register(id, entry_point, *, card=None, **kwargs)``.
 
     Ids are registered with :func:`gymnasium.register` when ``gymprecice`` is imported,
     so ``gymnasium.make("gymprecice/JetCylinder-v0")`` works for every installed plugin.
+    ``card`` is the env's lab card (:class:`gymprecice.card.EnvCard`: its objective,
+    held-out starts, uncontrolled setting, feedback law, reference, shipped policies...),
+    what ``gymprecice train``, ``evaluate``, ``benchmark`` and the other lab commands read
+    beyond the Gymnasium API; a malformed card is refused at load, naming the field.
     """

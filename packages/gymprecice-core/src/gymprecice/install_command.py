@@ -8,10 +8,12 @@ plugin's own adapter. See :mod:`gymprecice.stack` for how a step is built and re
 from __future__ import annotations
 
 import argparse
+import textwrap
 import time
 from typing import Any
 
 from gymprecice.plugins import GymPrecicePluginManager, get_plugin_manager
+from gymprecice.prerequisites import describe_missing
 from gymprecice.solver import DoctorCheck
 from gymprecice.stack import (
     SOURCES_ENV,
@@ -36,18 +38,43 @@ def install_steps(pm: GymPrecicePluginManager | None = None) -> list[InstallStep
     return list(steps.values())
 
 
+def _prerequisites_epilog() -> str:
+    """``--help``'s list of what the builds need, from the same objects the probes use."""
+    from gymprecice.precice_install import PRECICE_PREREQUISITES
+
+    packages = " ".join(dict.fromkeys(d for p in PRECICE_PREREQUISITES for d in p.debian))
+    items = "\n".join(f"  - {p.title}" for p in PRECICE_PREREQUISITES)
+    return (
+        "build prerequisites (probed before anything is built; what is missing is listed):\n"
+        f"{items}\n"
+        "  - for pyprecice, also this Python's headers and an MPI library for mpi4py\n"
+        "  - for a solver adapter, also its solver: OpenFOAM (openfoam-adapter), deal.II "
+        "(dealii-adapter),\n    Debian's FEniCS (fenics); `gymprecice install --list` shows "
+        "each step's state\n\n"
+        + textwrap.fill(
+            f"Debian/Ubuntu: sudo apt-get install {packages} python3-dev libopenmpi-dev",
+            width=88,
+            subsequent_indent="    ",
+            break_on_hyphens=False,
+        )
+    )
+
+
 def add_install_parser(sub: Any) -> None:
     p = sub.add_parser(
         "install",
         help="build preCICE, pyprecice and the solver adapters (whatever is missing)",
-        description=(
+        description=textwrap.fill(
             "Build the real coupling stack from release sources: preCICE into a per-user "
             f"prefix ({stack_prefix()}), pyprecice into this Python environment, and each "
             "solver plugin's preCICE adapter. Sources come from the directory in "
             f"${SOURCES_ENV} (an offline mirror of the release archives) or are downloaded; "
             "checksums are verified. What is already built is kept (a second run takes "
-            "seconds)."
+            "seconds).",
+            width=88,
         ),
+        epilog=_prerequisites_epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument(
         "steps",
@@ -72,9 +99,12 @@ def add_install_parser(sub: Any) -> None:
 def cmd_install(args: argparse.Namespace) -> int:
     steps = install_steps()
     if args.list:
-        for check in stack_checks(steps):
+        for step, check in zip(steps, stack_checks(steps)):
             mark = "ok  " if check.ok else "--  "
             print(f"{mark}{check.name.removeprefix('stack: '):<16} {check.detail}")
+            absent = [] if check.ok else step.missing_prerequisites()
+            if absent:
+                print(f"{'':<20} to build it, install: {describe_missing(absent)}")
         return 0
     try:
         ordered = order_steps(steps, args.steps, skip=args.skip)
@@ -89,7 +119,7 @@ def cmd_install(args: argparse.Namespace) -> int:
     for r in results:
         took = f" in {r.seconds:.0f} s" if r.status in ("built", "failed") else ""
         print(f"  {r.step.name:<{width}}  {r.status}{took}  {r.detail}")
-    return 1 if any(r.status in ("failed", "skipped") for r in results) else 0
+    return 1 if any(r.status in ("failed", "skipped", "missing") for r in results) else 0
 
 
 def stack_checks(steps: list[InstallStep] | None = None) -> list[DoctorCheck]:

@@ -18,12 +18,18 @@ refused with the hook's name, rather than read as "handled".
 
 from __future__ import annotations
 
+import time as _time
+from collections.abc import Callable
 from typing import Any
 
-from gymprecice.errors import CaseError
+from gymprecice.errors import CaseError, ConfigError, SolverTimeoutError
+from gymprecice.fields import Field
 from gymprecice.solver import LaunchSpec, SolverContext
 
-__all__ = ["launch_spec", "prepare_case", "reset_case"]
+__all__ = ["launch_spec", "prepare_case", "read_field", "reset_case"]
+
+#: seconds between two looks for a field snapshot the solver has not written yet
+FIELD_POLL_S = 0.05
 
 
 def _bad_answer(hook: str, ctx: SolverContext, answer: Any, expected: str) -> CaseError:
@@ -78,3 +84,55 @@ def launch_spec(hook: Any, ctx: SolverContext) -> LaunchSpec:
     if not isinstance(spec, LaunchSpec):
         raise _bad_answer("gymprecice_launch_solver", ctx, spec, "a LaunchSpec or None (not mine)")
     return spec
+
+
+def read_field(
+    hook: Any,
+    ctx: SolverContext,
+    name: str,
+    time: float,
+    *,
+    tolerance: float,
+    timeout: float,
+    alive: Callable[[], None] | None = None,
+    plugin: str | None = None,
+) -> Field:
+    """Call ``gymprecice_read_field`` until the solver's snapshot reaches ``time``.
+
+    The solver may write a moment after the coupling returned, so an older snapshot (or
+    none yet) means "ask again": every :data:`FIELD_POLL_S` seconds, with ``alive()``
+    raising if a solver died, until ``timeout``. No plugin answering at all is an error
+    naming the solver's plugin (``plugin``) and the hook.
+    """
+    deadline = _time.monotonic() + max(0.0, timeout)
+    answered = None
+    while True:
+        answered = hook.gymprecice_read_field(solver=ctx, name=name, time=time)
+        if answered is None and plugin is not None:
+            # No snapshot yet, or a plugin that reads no fields at all: tell them apart.
+            impls = [impl.plugin_name for impl in hook.gymprecice_read_field.get_hookimpls()]
+            if plugin not in impls:
+                raise ConfigError(
+                    f"{ctx.describe()}: cannot render field {name!r}: plugin {plugin!r}, which "
+                    f"handles kind {ctx.kind!r}, does not implement the hook "
+                    "gymprecice_read_field; render without this solver (leave it out of the "
+                    "env's render_fields) or add the hook to the plugin"
+                )
+        if answered is not None:
+            if not isinstance(answered, Field):
+                raise _bad_answer(
+                    "gymprecice_read_field", ctx, answered, "a gymprecice.fields.Field or None"
+                )
+            if answered.time >= time - tolerance:
+                return answered
+        if _time.monotonic() >= deadline:
+            have = "none" if answered is None else f"the latest at t={answered.time:g}"
+            raise SolverTimeoutError(
+                f"{ctx.describe()}: field {name!r} at t={time:g} was not written within "
+                f"{timeout:g} s ({have}); check that the solver writes it at every action",
+                env_index=ctx.env_index,
+                solver=ctx.name,
+            )
+        if alive is not None:
+            alive()
+        _time.sleep(FIELD_POLL_S)

@@ -22,7 +22,8 @@ import os
 import re
 from pathlib import Path
 
-_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+#: a CSI escape sequence (colours, cursor moves): ESC [ parameters final byte
+_ANSI = re.compile(r"\x1b\[[0-9;?]*[ -/]*[@-~]")
 _ERROR = re.compile(
     r"\bERROR:|FOAM FATAL (?:IO )?ERROR|Error (?:\(deferred[^)]*\) )?in the preCICE adapter"
 )
@@ -48,11 +49,16 @@ def _read(path: Path) -> str:
     return data.decode("utf-8", errors="replace")
 
 
+def without_colours(text: str) -> str:
+    """``text`` without ANSI escape sequences (preCICE colours its log levels on a terminal)."""
+    return _ANSI.sub("", text)
+
+
 def error_lines(path: str | os.PathLike[str] | None, *, limit: int = 12) -> list[str]:
     """The solver's own error lines in the log at ``path``, in order, without duplicates."""
     if path is None:
         return []
-    lines = _ANSI.sub("", _read(Path(path))).splitlines()
+    lines = without_colours(_read(Path(path))).splitlines()
     found: list[str] = []
     i = 0
     while i < len(lines) and len(found) < limit:

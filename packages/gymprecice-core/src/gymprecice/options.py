@@ -7,7 +7,11 @@ every plugin should refuse unknown keys in ``gymprecice_validate_case`` (``gympr
 check`` and env construction report it) and again in ``gymprecice_prepare_case`` (an
 env built with validation off)::
 
-    from gymprecice.hookspecs import hookimpl, refuse_unknown_options, unknown_option_problems
+    from gymprecice.hookspecs import (
+        hookimpl,
+        refuse_unknown_options,
+        unknown_option_problems,
+    )
 
     OPTIONS = ("steps", "log_name")
 

@@ -280,9 +280,9 @@ class GymPrecicePluginManager(pluggy.PluginManager):
         if dist is not None:
             dist_name, version = _dist_name(dist), dist.version
         elif module == DEFAULT_PLUGIN_MODULE:
-            from gymprecice import __version__
+            from gymprecice.distribution import core_version
 
-            dist_name, version = CORE_DISTRIBUTION, __version__
+            dist_name, version = CORE_DISTRIBUTION, core_version()
         else:
             dist_name = version = None
         hooks = tuple(sorted(c.name for c in self.get_hookcallers(plugin) or []))

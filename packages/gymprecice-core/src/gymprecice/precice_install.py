@@ -9,12 +9,24 @@ running Python environment with an RPATH to the prefix, so ``import precice`` fi
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
+from gymprecice.prerequisites import (
+    BOOST,
+    CMAKE,
+    CXX,
+    EIGEN,
+    LIBXML2,
+    MAKE,
+    MPI,
+    PKG_CONFIG,
+    python_headers,
+)
 from gymprecice.stack import (
     BuildContext,
     BuildError,
@@ -45,10 +57,14 @@ PRECICE_CMAKE_OPTIONS = (
     "-DBUILD_TESTING=OFF",
 )
 
+#: What building preCICE needs on the machine (probed before the build starts).
+PRECICE_PREREQUISITES = (CXX, MAKE, CMAKE, PKG_CONFIG, BOOST, EIGEN, LIBXML2)
+
 BUILD_NEEDS = (
     "install a C++ compiler, make, CMake, pkg-config and preCICE's libraries "
-    "(Debian: `apt-get install g++ make cmake pkg-config libboost-all-dev libeigen3-dev "
-    "libxml2-dev`; `bash scripts/setup.sh` does this) and run it again"
+    "(Debian/Ubuntu: `sudo apt-get install g++ make cmake pkg-config libboost-all-dev "
+    "libeigen3-dev libxml2-dev`; from a clone of the repository, `bash scripts/setup.sh` "
+    "does this) and run it again"
 )
 
 
@@ -134,6 +150,14 @@ def _build_pyprecice(ctx: BuildContext) -> None:
         # it without LD_LIBRARY_PATH (pip's wheel cache would reuse a build against
         # another preCICE, hence --no-cache-dir).
         env["LDFLAGS"] = f"{os.environ.get('LDFLAGS', '')} -Wl,-rpath,{libdir}".strip()
+    if importlib.util.find_spec("mpi4py") is None:
+        # pyprecice imports mpi4py at import time (`from mpi4py import MPI`) and declares it,
+        # but pyprecice itself is installed with --no-deps below: bring it here.
+        ctx.say("[install]   mpi4py (pyprecice imports it)")
+        ctx.run(
+            [sys.executable, "-m", "pip", "install", "--disable-pip-version-check", "mpi4py"],
+            cwd=ctx.work,
+        )
     ctx.say("[install]   compiling pyprecice against preCICE (about a minute)")
     ctx.run(
         [
@@ -170,6 +194,7 @@ def core_install_steps() -> list[InstallStep]:
             found=_pkg_config_precice,
             needs=BUILD_NEEDS,
             key_extra=" ".join(PRECICE_CMAKE_OPTIONS),
+            prerequisites=PRECICE_PREREQUISITES,
         ),
         InstallStep(
             name="pyprecice",
@@ -182,5 +207,7 @@ def core_install_steps() -> list[InstallStep]:
             needs=BUILD_NEEDS,
             key_extra=f"preCICE {PRECICE_VERSION}",
             per_environment=True,
+            # a C extension compiled by pip (its build dependencies come from the index)
+            prerequisites=(CXX, PKG_CONFIG, MPI, python_headers()),
         ),
     ]

@@ -2,11 +2,13 @@
 
 Gymnasium 1.x no longer discovers environments through entry points, so gymprecice does it
 for its plugins: each plugin's ``gymprecice_register_environments(register)`` hook is
-called with a ``register(id, entry_point, **kwargs)`` callable that forwards to
-:func:`gymnasium.register`. After ``import gymprecice``::
+called with a ``register(id, entry_point, *, card=None, **kwargs)`` callable that forwards
+to :func:`gymnasium.register`; ``card`` is the env's lab card (:mod:`gymprecice.card`),
+checked here and kept for the lab's commands. After ``import gymprecice``::
 
     gymnasium.make("gymprecice/JetCylinder-v0")
-    gymnasium.make("gymprecice:gymprecice/JetCylinder-v0")  # imports gymprecice first
+    # the "gymprecice:" prefix imports gymprecice first
+    gymnasium.make("gymprecice:gymprecice/JetCylinder-v0")
 
 Importing gymprecice must stay fast and must survive a broken plugin, so:
 
@@ -27,6 +29,7 @@ import warnings
 from collections.abc import Callable
 from typing import Any
 
+from gymprecice.card import CardError, record_card
 from gymprecice.plugins import GymPrecicePluginManager, PluginWarning, get_plugin_manager
 
 __all__ = ["register_environments", "registered_environments"]
@@ -67,7 +70,13 @@ def register_environments(pm: GymPrecicePluginManager | None = None) -> list[str
 
 
 def _registrar(gymnasium: Any, plugin_name: str, added: list[str]) -> Callable[..., None]:
-    def register(id: str, entry_point: Any = None, **kwargs: Any) -> None:
+    def register(id: str, entry_point: Any = None, *, card: Any = None, **kwargs: Any) -> None:
+        try:
+            # Checked even when the id exists already: a malformed card is refused at load.
+            record_card(id, card, plugin_name)
+        except CardError as exc:
+            # The env itself is still registered; the lab reports the refusal for it.
+            warnings.warn(str(exc), PluginWarning, stacklevel=3)
         if id in gymnasium.registry:
             return
         gymnasium.register(id=id, entry_point=entry_point, **kwargs)

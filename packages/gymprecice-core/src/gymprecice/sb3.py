@@ -1,7 +1,8 @@
 """Stable-Baselines3 facades: a fault-tolerant ``SubprocVecEnv`` and a telemetry callback.
 
-Importing this module imports Stable-Baselines3, which gymprecice does not depend on;
-only users who train with SB3 import it::
+Importing this module imports Stable-Baselines3, which gymprecice-core does not depend on
+unless installed with its ``sb3`` extra (``pip install 'gymprecice-core[sb3]'``); only users
+who train with SB3 import it::
 
     from gymprecice.sb3 import ResilientSubprocVecEnv, TelemetryCallback
 
@@ -32,13 +33,19 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env.base_vec_env import (
-    VecEnv,
-    VecEnvIndices,
-    VecEnvObs,
-    VecEnvStepReturn,
-)
+
+from gymprecice.optional import optional_import_error
+
+try:
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env.base_vec_env import (
+        VecEnv,
+        VecEnvIndices,
+        VecEnvObs,
+        VecEnvStepReturn,
+    )
+except ModuleNotFoundError as exc:  # say which extra brings it: gymprecice-core[sb3]
+    raise optional_import_error(exc, __name__) from None
 
 from gymprecice.telemetry import Telemetry
 from gymprecice.vector import EnvFailure, EnvPool

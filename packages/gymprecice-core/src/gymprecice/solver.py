@@ -73,6 +73,8 @@ class SolverContext:
         The plugin's own memory for this solver across hooks and episodes.
     ``precice_library``
         The module the env couples through (see the field's comment).
+    ``fields``, ``field_interval``
+        What the env renders from this solver, and how often (see the fields' comments).
     """
 
     name: str
@@ -95,6 +97,12 @@ class SolverContext:
     #: must use the same one; core also exports it to the solver's process as
     #: ``GYMPRECICE_PRECICE_LIBRARY``.
     precice_library: str = "precice"
+    #: The fields the env draws from this solver (``render_mode="rgb_array"``), set by core
+    #: before every ``gymprecice_reset_case``; ``()`` when the env does not render: then
+    #: the solver must write nothing extra (see ``gymprecice_read_field``).
+    fields: tuple[str, ...] = ()
+    #: Coupling time in seconds between two frames (one action), when ``fields`` is set.
+    field_interval: float | None = None
 
     @property
     def uses_test_double(self) -> bool:
@@ -158,8 +166,8 @@ class OutputReader(Protocol):
     """An incremental reader of a solver's output (probes, forces, watch points, ...).
 
     What ``gymprecice_open_output`` returns and ``Adapter.open_output`` hands to env code.
-    Required: ``read_new()`` returns only the rows written since the last call (possibly
-    none); ``close()`` releases file handles. Core closes every reader it handed out at
+    Required: ``read_new()`` returns the rows not returned before (possibly none);
+    ``close()`` releases file handles. Core closes every reader it handed out at
     reset and close. What a "row" is belongs to the plugin and is documented with its
     reader: the OpenFOAM plugin's :class:`~gymprecice_openfoam.outputs.Rows` has ``time``,
     ``values``, ``column(name)`` and ``last`` (the newest row's values); the watch-point
@@ -184,10 +192,16 @@ class WaitableOutputReader(OutputReader, Protocol):
         ``start_time + t``. ``None`` means 0. An OpenFOAM case continuing from a pre-run
         to t = 1.0 has ``start_time == 1.0``; a preCICE watch-point log starts at 0.
     ``latest_time``
-        Time of the newest row read so far, ``None`` before the first.
+        Time of the newest row handed out so far (by ``read_new`` or ``wait_until``),
+        ``None`` before the first.
     ``wait_until(time, timeout)``
-        Block until the row at ``time`` (or a later one) has been written, return the rows
-        that ``read_new`` would have returned, and raise an error naming the file after
+        Block until the row at ``time`` (or a later one) has been written, then return the
+        rows of the step that ended at ``time``: the rows not returned before, up to the
+        row at ``time`` (:func:`gymprecice.readers.rows_through` makes the cut). Rows the
+        solver wrote past ``time`` (it may run ahead of the controller) stay for the next
+        read, so what an env takes from a step never depends on how far the solver got.
+        A second call for the same ``time`` returns the same rows, so an env's
+        observation and reward may both ask. Raise an error naming the file after
         ``timeout`` seconds. Core counts the time spent here as waiting for the solver
         (``info["timing"]["wait_s"]``), not as env code.
     """

@@ -20,6 +20,10 @@ Why it is shaped like this:
   it built is still there, so a second run takes seconds. The stamp is written last, after a
   successful build; a failed or interrupted build leaves no stamp, and the next run builds
   again. One lock serialises concurrent set-ups of the same prefix.
+* **Prerequisites first**: each step lists what it needs on the machine (a compiler, CMake,
+  Boost, a solver; see :mod:`gymprecice.prerequisites`). Before anything is built, every step
+  that would be built is probed, and all that is missing is named at once with the packages
+  that provide it; a step that lacks something is not started (``missing``).
 * **Logs**: each step logs to ``<prefix>/logs/<step>.log``; a failure prints the log's tail,
   the lines that look like errors, and what to do.
 """
@@ -42,6 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from gymprecice.errors import GymPreciceError
+from gymprecice.prerequisites import Prerequisite, command_output, describe_missing
 
 __all__ = [
     "PREFIX_ENV",
@@ -98,18 +103,6 @@ def solver_environment(
         if str(folder) not in parts:
             changes[var] = os.pathsep.join([*parts, str(folder)])
     return changes
-
-
-def command_output(argv: Sequence[str], timeout: float = 20) -> str | None:
-    """stdout of a small probe command (``pkg-config``, ``dpkg-query``), or ``None`` if it
-    is missing, fails or hangs: the probes only decide whether something is there."""
-    try:
-        proc = subprocess.run(
-            list(argv), capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
-        )
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    return proc.stdout.strip() if proc.returncode == 0 else None
 
 
 def stack_which(program: str, environ: Mapping[str, str] | None = None) -> str | None:
@@ -240,6 +233,10 @@ class BuildContext:
         }
 
 
+#: :attr:`InstallStep.needs` by default: the advice when a build program is missing
+BUILD_TOOLS_ADVICE = "install the build tools (a C++ compiler, make, CMake) and run it again"
+
+
 @dataclass
 class InstallStep:
     """One piece of the stack: how to tell it is there, and how to build it.
@@ -248,6 +245,8 @@ class InstallStep:
     (e.g. a preCICE that ``pkg-config`` finds), in which case nothing is built. ``built``
     returns the path of what this step's own build produced, or ``None`` once it is gone.
     ``key`` changes whenever a rebuild is needed (version, archive checksum, build options).
+    ``prerequisites`` are probed before the build starts (:mod:`gymprecice.prerequisites`);
+    ``needs`` is the advice when a build program turns out to be missing all the same.
     """
 
     name: str
@@ -258,9 +257,14 @@ class InstallStep:
     found: Callable[[], str | None] = lambda: None
     archive: SourceArchive | None = None
     requires: tuple[str, ...] = ()
-    needs: str = "install the build tools (a C++ compiler, make, CMake) and run it again"
+    needs: str = BUILD_TOOLS_ADVICE
     key_extra: str = ""
     per_environment: bool = False  # built into the running Python environment, not the prefix
+    prerequisites: tuple[Prerequisite, ...] = ()
+
+    def missing_prerequisites(self) -> list[Prerequisite]:
+        """The prerequisites whose probe finds nothing on this machine."""
+        return [p for p in dict.fromkeys(self.prerequisites) if not p.present()]
 
     @property
     def key(self) -> str:
@@ -335,7 +339,7 @@ def order_steps(
 @dataclass
 class StepResult:
     step: InstallStep
-    status: str  # "built", "done", "found", "failed", "skipped"
+    status: str  # "built", "done", "found", "missing" (prerequisites), "failed", "skipped"
     detail: str = ""
     seconds: float = 0.0
     log: Path | None = None
@@ -350,33 +354,92 @@ def install(
     prefix: Path | None = None,
     say: Callable[[str], None] = print,
 ) -> list[StepResult]:
-    """Build every step that is not done yet; a failed step skips the steps that require it."""
+    """Build every step that is not done yet; a failed step skips the steps that require it.
+
+    First, for every step that would be built, its prerequisites are probed and everything
+    missing is said at once; such a step is not started (``missing``).
+    """
     prefix = stack_prefix() if prefix is None else prefix
     jobs = jobs or max(1, len(os.sched_getaffinity(0)))
     results: list[StepResult] = []
     failed: set[str] = set()
+    built: set[str] = set()
     with _locked(prefix):
-        for step in steps:
+        plan = _plan(steps, prefix, force=force)
+        lacking = {step.name: absent for step, _, _, absent in plan if absent}
+        if lacking:
+            say(missing_prerequisites_message(steps, lacking))
+        for step, stamp, elsewhere, absent in plan:
             blocked = [r for r in step.requires if r in failed]
             if blocked:
                 failed.add(step.name)
                 results.append(StepResult(step, "skipped", f"needs {', '.join(blocked)}"))
                 say(f"[install] {step.title}: skipped (needs {', '.join(blocked)})")
                 continue
-            results.append(_run_step(step, prefix, force=force, jobs=jobs, say=say))
+            if not force and any(r in built for r in step.requires):
+                # what it requires was just rebuilt: judge the step now, not before that
+                stamp = stamp_of(step, prefix)
+                elsewhere = None if stamp is not None else step.found()
+                if stamp is None and not elsewhere:
+                    absent = step.missing_prerequisites()
+            if absent:
+                failed.add(step.name)
+                results.append(StepResult(step, "missing", describe_missing(absent)))
+                say(f"[install] {step.title}: not built, missing {describe_missing(absent)}")
+                continue
+            results.append(_run_step(step, prefix, stamp, elsewhere, jobs=jobs, say=say))
             if results[-1].status == "failed":
                 failed.add(step.name)
+            elif results[-1].status == "built":
+                built.add(step.name)
     return results
 
 
+def _plan(
+    steps: Sequence[InstallStep], prefix: Path, *, force: bool
+) -> list[tuple[InstallStep, dict | None, str | None, list[Prerequisite]]]:
+    """Per step: its stamp, an installation found elsewhere, and what a build would lack."""
+    plan = []
+    for step in steps:
+        stamp = None if force else stamp_of(step, prefix)
+        elsewhere = None if force or stamp is not None else step.found()
+        build = stamp is None and not elsewhere
+        plan.append((step, stamp, elsewhere, step.missing_prerequisites() if build else []))
+    return plan
+
+
+def missing_prerequisites_message(
+    steps: Sequence[InstallStep], lacking: Mapping[str, Sequence[Prerequisite]]
+) -> str:
+    """What each step lacks, and one ``apt-get install`` line for all of it."""
+    lines = ["[install] missing on this machine (nothing of these steps is built):"]
+    everything: list[Prerequisite] = []
+    for step in steps:
+        absent = lacking.get(step.name)
+        if absent:
+            lines.append(f"  {step.name}: {', '.join(p.title for p in absent)}")
+            everything.extend(absent)
+    packages = list(dict.fromkeys(d for p in everything for d in p.debian))
+    if packages:
+        lines.append(f"  Debian/Ubuntu: sudo apt-get install {' '.join(packages)}")
+    lines.append(
+        "  Install them and run `gymprecice install` again (`--skip STEP` leaves a step out)."
+    )
+    return "\n".join(lines)
+
+
 def _run_step(
-    step: InstallStep, prefix: Path, *, force: bool, jobs: int, say: Callable[[str], None]
+    step: InstallStep,
+    prefix: Path,
+    stamp: dict | None,
+    elsewhere: str | None,
+    *,
+    jobs: int,
+    say: Callable[[str], None],
 ) -> StepResult:
-    stamp = None if force else stamp_of(step, prefix)
     if stamp is not None:
         say(f"[install] {step.title}: done ({stamp.get('path')})")
         return StepResult(step, "done", str(stamp.get("path")))
-    elsewhere = None if force else step.found()
     if elsewhere:
         say(f"[install] {step.title}: found {elsewhere}, not built")
         return StepResult(step, "found", elsewhere)

@@ -25,7 +25,13 @@ only when it has every column and its last value is a whole scientific number (m
 more bytes. A file that does not exist yet reads as empty: preCICE creates it only when the
 participant configures itself. :meth:`WatchPointLog.wait_until` blocks until the row of a
 given time is in, because the solver writes its row a moment after the coupling partner's
-``advance`` has returned.
+``advance`` has returned, and hands out only the rows up to that time: a solver that runs
+ahead of the controller may already have written the next step's rows, and those stay for
+the next read (:mod:`gymprecice.readers`).
+
+preCICE writes a watch point for any participant whatever its solver, so core opens one
+for any solver: ``self.open_output("solid", "watchpoint", point="Flap-Tip")`` in an env
+(:func:`open_watch_point`, core's answer to ``gymprecice_open_output``).
 """
 
 from __future__ import annotations
@@ -33,20 +39,33 @@ from __future__ import annotations
 import os
 import re
 import time as _time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gymprecice.errors import GymPreciceError
+from gymprecice.errors import ConfigError, GymPreciceError
+from gymprecice.readers import rows_through, time_tolerance
+
+if TYPE_CHECKING:
+    from gymprecice.solver import SolverContext
 
 __all__ = [
+    "OUTPUT",
     "WatchPointError",
     "WatchPointLog",
     "WatchPointTimeoutError",
+    "open_watch_point",
     "parse_header",
     "watch_point_file_name",
 ]
+
+#: the output name of a watch point: ``open_output(solver, "watchpoint", point=...)``
+OUTPUT = "watchpoint"
+#: times in the log have 9 significant digits (``std::scientific``, 8 decimals)
+_RELATIVE_TIME_TOLERANCE = 1e-8
 
 #: one complete value as C++ streams write doubles in scientific notation
 _COMPLETE_VALUE = re.compile(r"[-+]?(?:\d+\.?\d*[eE][-+]\d{2,}|nan|inf)", re.IGNORECASE)
@@ -106,13 +125,21 @@ def parse_header(columns: list[str]) -> dict[str, Field]:
 
 
 class WatchPointLog:
-    """Incremental reader of one watch-point log (an :class:`~gymprecice.solver.OutputReader`).
+    """Incremental reader of one watch-point log (a ``WaitableOutputReader``).
 
-    ``read_new()`` returns the rows completed since the previous call as a float array of
-    shape ``(k, n_columns)`` (``(0, n_columns)`` when nothing is new, ``(0, 0)`` while the
-    header is unknown). Every row read so far stays available in :attr:`data`, and
-    :meth:`field` slices one quantity out of it. A file that is replaced or truncated (a
-    new episode in the same directory) is read again from its start.
+    Rows come back as a float array of shape ``(k, n_columns)`` (``(0, n_columns)`` when
+    there are none, ``(0, 0)`` while the header is unknown), column 0 the time:
+
+    * :meth:`wait_until` ``(t, timeout)``: the rows of the step that ended at ``t``, those
+      after the previous ``wait_until`` up to the row of ``t``; rows the solver wrote past
+      ``t`` stay for the next read. Asked again for the same ``t``, it returns the same
+      rows, so an env's observation and reward can both ask for them.
+    * :meth:`read_new`: every row not handed out yet, whatever its time.
+
+    Every row handed out stays in :attr:`data`, and :meth:`field` slices one quantity out
+    of rows (``field("Displacement", rows)``). A file that is replaced or truncated (a new
+    episode in the same directory) is read again from its start. Open one in an env with
+    ``self.open_output(solver, "watchpoint", point=name)``; core closes it at every reset.
     """
 
     #: preCICE's watch-point log counts time from 0 in every run (see
@@ -128,8 +155,9 @@ class WatchPointLog:
         self._offset = 0
         self._buffer = ""
         self._line = 0  # lines consumed (for error messages)
-        self._new: list[list[float]] = []
-        self._all: list[list[float]] = []
+        self._pending: list[list[float]] = []  # read from the file, not handed out yet
+        self._handed: list[list[float]] = []  # handed out by read_new / wait_until
+        self._step: tuple[float, np.ndarray] | None = None  # the last wait_until's answer
         self._closed = False
 
     @classmethod
@@ -139,10 +167,9 @@ class WatchPointLog:
 
     # -- OutputReader ----------------------------------------------------------------------
     def read_new(self) -> np.ndarray:
-        """Rows completed since the last call (see the class docstring for the shape)."""
+        """Every complete row not handed out yet (see the class docstring for the shape)."""
         self._poll()
-        rows, self._new = self._new, []
-        return self._as_array(rows)
+        return self._hand_out(len(self._pending))
 
     def close(self) -> None:
         self._closed = True
@@ -151,13 +178,13 @@ class WatchPointLog:
     # -- queries ---------------------------------------------------------------------------
     @property
     def data(self) -> np.ndarray:
-        """Every row read so far (call :meth:`read_new` or :meth:`wait_until` to read on)."""
-        return self._as_array(self._all)
+        """Every row handed out so far (call :meth:`read_new` or :meth:`wait_until` to read on)."""
+        return self._as_array(self._handed)
 
     @property
     def latest_time(self) -> float | None:
-        """Time of the last complete row read so far, ``None`` before the first."""
-        return self._all[-1][0] if self._all else None
+        """Time of the newest row handed out so far, ``None`` before the first."""
+        return self._handed[-1][0] if self._handed else None
 
     def field(self, name: str, rows: np.ndarray | None = None) -> np.ndarray:
         """Values of ``name`` (``"Time"``, ``"Coordinate"``, a data name) in ``rows``.
@@ -177,20 +204,32 @@ class WatchPointLog:
         return table[:, spec.start : spec.stop] if table.size else np.zeros((0, spec.width))
 
     def wait_until(self, time: float, timeout: float, poll_interval: float = 0.02) -> np.ndarray:
-        """Block until the row of ``time`` (or a later one) is in, then return the new rows.
+        """Block until the row of ``time`` (or a later one) is in; return the step's rows.
 
-        The returned rows are those :meth:`read_new` would have returned. Raises
+        The step's rows are the rows not handed out yet up to the row of ``time``
+        (:func:`~gymprecice.readers.rows_through`); rows of later times stay for the next
+        read. A second call for the same ``time`` returns the same rows. Raises
         :class:`WatchPointTimeoutError` after ``timeout`` seconds, saying whether the file
         exists and which time it last showed. ``time`` matches within the 9 significant
         digits the log keeps.
         """
+        tolerance = time_tolerance(time, _RELATIVE_TIME_TOLERANCE)
+        if self._step is not None and abs(self._step[0] - time) <= tolerance:
+            return self._step[1].copy()
         deadline = _time.monotonic() + max(0.0, timeout)
-        tolerance = 1e-8 * max(1.0, abs(time))
         while True:
             self._poll()
-            latest = self.latest_time
+            latest = self._seen_time()
             if latest is not None and latest >= time - tolerance:
-                return self.read_new()
+                count = rows_through(
+                    [row[0] for row in self._pending],
+                    time,
+                    _RELATIVE_TIME_TOLERANCE,
+                    handed_out=self.latest_time,
+                )
+                rows = self._hand_out(count)
+                self._step = (time, rows.copy())
+                return rows
             if _time.monotonic() >= deadline:
                 if not self.path.exists():
                     state = (
@@ -207,6 +246,17 @@ class WatchPointLog:
             _time.sleep(poll_interval)
 
     # -- internals -------------------------------------------------------------------------
+    def _seen_time(self) -> float | None:
+        """Time of the newest complete row read from the file, handed out or not."""
+        if self._pending:
+            return self._pending[-1][0]
+        return self.latest_time
+
+    def _hand_out(self, count: int) -> np.ndarray:
+        rows, self._pending = self._pending[:count], self._pending[count:]
+        self._handed.extend(rows)
+        return self._as_array(rows)
+
     def _as_array(self, rows: list[list[float]]) -> np.ndarray:
         width = len(self.columns) if self.columns else 0
         if not rows:
@@ -227,8 +277,9 @@ class WatchPointLog:
         self._offset = 0
         self._buffer = ""
         self._line = 0
-        self._new = []
-        self._all = []
+        self._pending = []
+        self._handed = []
+        self._step = None
 
     def _poll(self) -> None:
         if self._closed:
@@ -299,6 +350,80 @@ class WatchPointLog:
             raise WatchPointError(
                 f"{self.path}:{number}: not a row of numbers: {line.strip()!r}"
             ) from None
-        self._new.append(row)
-        self._all.append(row)
+        self._pending.append(row)
         return True
+
+
+# -- opening a participant's watch point ---------------------------------------------------
+
+
+def watch_point_options(
+    solver: SolverContext, options: Mapping[str, Any]
+) -> tuple[str, str | None]:
+    """The watch point and participant that ``open_output(solver, "watchpoint", ...)`` asks for.
+
+    ``point`` (or ``name``) names the ``<watch-point>``; ``participant`` defaults to the
+    solver's. ``point`` is the keyword an env passes, because ``Adapter.open_output``
+    already takes the output's name as ``name``. Any other key is a :class:`ConfigError`.
+    """
+    unknown = sorted(set(options) - {"name", "point", "participant"})
+    point = options.get("point") or options.get("name")
+    if unknown or not point:
+        raise ConfigError(
+            f"{solver.describe()}: open_output({solver.name!r}, {OUTPUT!r}, point=...) needs "
+            f"the watch point's name (and optionally participant=...); got {dict(options)!r}"
+        )
+    participant = options.get("participant") or solver.participant
+    return str(point), (str(participant) if participant else None)
+
+
+def undeclared_watch_point(solver: SolverContext, participant: str, point: str) -> str | None:
+    """Why preCICE writes no log of ``point`` for ``participant``, or ``None`` if it does.
+
+    preCICE writes a watch-point log only for a ``<watch-point>`` of the participant in the
+    env's ``precice-config.xml``; the message names the file and the tag to add.
+    """
+    precice = solver.precice
+    if precice is None:
+        return None  # nothing to check against
+    if participant not in precice.participants:
+        return (
+            f"{precice.path}: no participant {participant!r} to write watch point {point!r}; "
+            f"the participants are {sorted(precice.participants)} (set the solver's "
+            "participant in gymprecice-config.json, or pass participant=...)"
+        )
+    known = [w.name for w in precice.participants[participant].watch_points]
+    if point in known:
+        return None
+    return (
+        f"{precice.path}: participant {participant!r} has no <watch-point name={point!r}>; "
+        f"its watch points are {known}. Add one inside <participant name={participant!r}>, "
+        f'e.g. <watch-point mesh="<a mesh it provides>" name="{point}" coordinate="x;y" />'
+    )
+
+
+def open_watch_point(
+    solver: SolverContext, options: Mapping[str, Any], *, participant: str | None = None
+) -> WatchPointLog:
+    """A reader of the watch point ``options`` name, in the solver's run directory.
+
+    What core answers to ``open_output(solver, "watchpoint", point=...)`` for any solver
+    whose participant it knows, whatever the solver's kind: preCICE, not the solver,
+    writes the log, ``precice-<participant>-watchpoint-<point>.log`` in the participant's
+    working directory. ``participant`` is the fallback when neither ``options`` nor the
+    solver's configuration names one (a plugin that reads it from the solver's own files
+    passes it). Raises :class:`~gymprecice.errors.ConfigError` naming the fix when the
+    participant is unknown or declares no such watch point.
+    """
+    point, named = watch_point_options(solver, options)
+    participant = named or participant
+    if participant is None:
+        raise ConfigError(
+            f"{solver.describe()}: whose watch point {point!r}? Set the solver's "
+            f'"participant" in {solver.config_file or "gymprecice-config.json"} or pass '
+            f"open_output({solver.name!r}, {OUTPUT!r}, point={point!r}, participant=...)"
+        )
+    problem = undeclared_watch_point(solver, participant, point)
+    if problem:
+        raise ConfigError(problem)
+    return WatchPointLog(solver.run_dir / watch_point_file_name(participant, point))

@@ -9,9 +9,11 @@ RPATH points at the stack's ``libprecice``, and the plugin finds it there withou
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
+from gymprecice.prerequisites import CMAKE, CXX, MAKE, Prerequisite, header
 from gymprecice.stack import (
     BuildContext,
     BuildError,
@@ -29,6 +31,14 @@ ADAPTER_ARCHIVE = SourceArchive(
 )
 PROGRAM = "elasticity"
 CMAKE_OPTIONS = ("-DDIM=2", "-DCMAKE_BUILD_TYPE=Release")
+_DEALII_HEADERS = header("deal.II", "deal.II/base/config.h", debian=("libdeal.ii-dev",))
+#: probed before the build starts (gymprecice.prerequisites): the headers where Debian puts
+#: them, or a deal.II of its own prefix named by DEAL_II_DIR (CMake's own way to find it)
+DEALII = Prerequisite(
+    "deal.II (>= 9.2, with its headers)",
+    lambda: bool(os.environ.get("DEAL_II_DIR")) or _DEALII_HEADERS.present(),
+    _DEALII_HEADERS.debian,
+)
 
 
 def _built(prefix: Path) -> Path | None:
@@ -54,8 +64,9 @@ def _build(ctx: BuildContext) -> None:
         ctx.run(["cmake", "-S", source, "-B", build, *CMAKE_OPTIONS, *extra], cwd=ctx.work, env=env)
     except BuildError:
         raise BuildError(
-            f"{ctx.step.title}: CMake failed; is deal.II (>= 9.2) installed? Debian: "
-            "`apt-get install libdeal.ii-dev` (`bash scripts/setup.sh` does this)"
+            f"{ctx.step.title}: CMake failed; is deal.II (>= 9.2) installed? Debian/Ubuntu: "
+            "`sudo apt-get install libdeal.ii-dev` (from a clone of the repository, "
+            "`bash scripts/setup.sh` does this); see the log for CMake's own words"
         ) from None
     ctx.say("[install]   compiling elasticity (about a minute)")
     ctx.run(["cmake", "--build", build, "--parallel", str(ctx.jobs)], cwd=ctx.work, env=env)
@@ -77,5 +88,6 @@ def elasticity_step() -> InstallStep:
         found=_found_elsewhere,
         requires=("precice",),
         needs="install deal.II, a C++ compiler, make and CMake, and run it again",
+        prerequisites=(CXX, MAKE, CMAKE, DEALII),
         key_extra=" ".join(CMAKE_OPTIONS),
     )

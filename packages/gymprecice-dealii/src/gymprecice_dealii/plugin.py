@@ -24,13 +24,18 @@ What the hooks do:
   write data, and the time step, which the adapter requires to equal the time-window size
   (it aborts otherwise). Mismatches are reported naming both files.
 * reset: delete the adapter's output folder, ``precice-*.log`` (iterations, convergence,
-  watch points) and ``precice-profiling/`` of the run directory only.
+  watch points) and ``precice-profiling/`` of the run directory only. When the env renders,
+  set ``Output interval`` to one snapshot per action; when it does not, keep the
+  prepared interval (see :mod:`gymprecice_dealii.fields`).
 * launch: ``elasticity parameters.prm`` (or through ``mpirun``).
-* outputs: ``self.open_output(solver, "watchpoint", point="Flap-Tip")`` in an env (hook
-  options ``{"point": ...}`` or ``{"name": ...}``) reads the preCICE watch-point log the
-  solid participant writes (see :mod:`gymprecice.watchpoints`). A solver of another kind
-  that writes such a log itself (a scripted stand-in for the solid) opts in with the
-  solver option ``{"outputs": "dealii"}``.
+* outputs: ``self.open_output(solver, "watchpoint", point="Flap-Tip")`` in an env reads
+  the preCICE watch-point log the solid participant writes. Core opens it for a solver
+  of any kind (see :mod:`gymprecice.watchpoints`); this plugin answers where core steps
+  aside: a deal.II solver whose participant only ``parameters.prm`` names, and a solver
+  of another kind that writes such a log itself (a scripted stand-in for the solid),
+  which opts in with the solver option ``{"outputs": "dealii"}``.
+* fields (``env.render()``): ``"displacement"`` (and the strain components) of the
+  adapter's VTK snapshots, drawn on the deformed solid.
 """
 
 from __future__ import annotations
@@ -44,11 +49,18 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice.errors import CaseError, ConfigError
+from gymprecice.fields import Field
 from gymprecice.hookspecs import InstallStep, hookimpl
 from gymprecice.solver import DoctorCheck, LaunchSpec, SolverContext
 from gymprecice.stack import stack_which
-from gymprecice.watchpoints import WatchPointLog, watch_point_file_name
+from gymprecice.watchpoints import (
+    WatchPointLog,
+    open_watch_point,
+    watch_point_file_name,
+    watch_point_options,
+)
 from gymprecice_dealii import divergence
+from gymprecice_dealii import fields as render_fields
 from gymprecice_dealii.prm import ElasticityParameters, PrmError
 
 KIND = "dealii"
@@ -135,6 +147,8 @@ def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     params.write()
     solver.state["participant"] = params.participant
     solver.state["output_folder"] = params.output_folder
+    solver.state["output_interval"] = params.output_interval
+    solver.state["time_step"] = params.time_step
     return True
 
 
@@ -155,7 +169,15 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
     profiling = run_dir / "precice-profiling"
     if profiling.is_dir():
         shutil.rmtree(profiling)
+    _set_output_interval(solver)
     return True
+
+
+@hookimpl
+def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Field | None:
+    if solver.kind != KIND:
+        return None
+    return render_fields.read_field(solver, name, time)
 
 
 @hookimpl
@@ -205,9 +227,10 @@ def gymprecice_detect_divergence(
 def gymprecice_open_output(
     solver: SolverContext, name: str, options: Mapping[str, Any]
 ) -> WatchPointLog | None:
-    # The reader is about preCICE's watch-point log, not about deal.II: a solver of another
-    # kind that writes the log itself (a test double's stand-in for the solid) opts in with
-    # options {"outputs": "dealii"}.
+    # Core opens any participant's watch point (preCICE writes it, whatever the solver).
+    # It leaves this plugin two cases: a deal.II solver whose participant only
+    # parameters.prm names, and a solver of another kind that writes the log itself (a test
+    # double's stand-in for the solid), which opts in with options {"outputs": "dealii"}.
     stand_in = solver.kind != KIND and solver.options.get("outputs") == KIND
     if solver.kind != KIND and not stand_in:
         return None
@@ -215,32 +238,15 @@ def gymprecice_open_output(
         raise ConfigError(
             f"{solver.describe()}: no output {name!r}; the deal.II plugin offers {list(OUTPUTS)}"
         )
-    # "point" is the same as "name": Adapter.open_output(solver, name, **options) already
-    # uses the keyword "name" for the output, so environments pass point="Flap-Tip".
-    unknown = sorted(set(options) - {"name", "point", "participant"})
-    point = options.get("point") or options.get("name")
-    if unknown or not point:
-        raise ConfigError(
-            f"{solver.describe()}: open_output({solver.name!r}, 'watchpoint', point=...) needs "
-            f"the watch point's name (and optionally participant=...); got {dict(options)!r}"
-        )
-    point = str(point)
-    participant = (
-        options.get("participant") or solver.state.get("participant") or solver.participant
-    )
+    if not stand_in:
+        known = solver.state.get("participant") or _read_parameters(solver).participant
+        return open_watch_point(solver, options, participant=known)
+    # A stand-in declares no watch point (the test double would write the same file too).
+    point, participant = watch_point_options(solver, options)
+    participant = participant or solver.state.get("participant")
     if participant is None:
-        participant = _read_parameters(solver).participant
-    # preCICE writes the log only for a declared watch point; a stand-in writes its own
-    # and declares none (the test double would otherwise write the same file as well).
-    if not stand_in and solver.precice is not None and participant in solver.precice.participants:
-        known = [w.name for w in solver.precice.participants[participant].watch_points]
-        if point not in known:
-            raise ConfigError(
-                f"{solver.precice.path}: participant {participant!r} has no "
-                f"<watch-point name={point!r}>; its watch points are {known}. Add one, e.g. "
-                f'<watch-point mesh="..." name="{point}" coordinate="x;y" />'
-            )
-    return WatchPointLog(solver.run_dir / watch_point_file_name(str(participant), point))
+        return open_watch_point(solver, options)  # raises, naming the fix
+    return WatchPointLog(solver.run_dir / watch_point_file_name(participant, point))
 
 
 @hookimpl
@@ -338,6 +344,21 @@ def _positive_int(solver: SolverContext, key: str) -> int:
             f"got {value!r}"
         )
     return value
+
+
+def _set_output_interval(solver: SolverContext) -> None:
+    """One snapshot per action when the env renders; the prepared interval when not."""
+    if "time_step" not in solver.state:  # a context this plugin did not prepare
+        params = _read_parameters(solver)
+        solver.state["time_step"] = params.time_step
+        solver.state["output_interval"] = params.output_interval
+    wanted = render_fields.render_output_interval(solver, solver.state["time_step"])
+    solver.state["render_output_interval"] = wanted
+    interval = wanted or solver.state["output_interval"]
+    params = _read_parameters(solver)
+    if params.output_interval != interval:
+        params.output_interval = interval
+        params.write()
 
 
 def _parameters_name(solver: SolverContext) -> str:

@@ -11,8 +11,10 @@ The syntax, as deal.II 9.4's ``ParameterHandler::parse_input`` reads it (checked
 the library)::
 
     # a comment runs from the first '#' to the end of the line ('\\#' is no escape)
-    subsection Time                 # names keep inner spaces: 'precice configuration'
-      set End time        = 5       # key and value are trimmed; the first '=' splits
+    # names keep inner spaces: 'precice configuration'
+    subsection Time
+      # key and value are trimmed; the first '=' splits
+      set End time        = 5
       set body forces     = 0.0, \\
                             0.0,0.0 # a line ending in '\\' continues on the next one
       subsection Nested             # subsections nest; each needs its 'end'

@@ -27,9 +27,12 @@ What the hooks do:
   (:mod:`gymprecice_fenics.dry_run`): a script that fails at import or while building its
   mesh is reported with its own error line before any coupling starts, and the coupling
   vertices it would give preCICE are kept for the interface geometry.
-* reset: removes the output folder, ``precice-*.log``, ``precice-profiling/`` and
-  ``precice-exports/`` of the run directory.
-* launch: ``<fenics python> <script>`` in the run directory, unbuffered.
+* reset: removes the output folder, ``precice-*.log``, ``precice-profiling/``,
+  ``precice-exports/`` and ``gymprecice-fields/`` of the run directory.
+* launch: ``<fenics python> <script>`` in the run directory, unbuffered; when the env
+  renders, with ``GYMPRECICE_FIELDS`` and ``GYMPRECICE_FIELD_INTERVAL`` set.
+* fields (``env.render()``): the ``gymprecice-fields/<name>.npz`` files the script writes
+  when asked (see :mod:`gymprecice_fenics.fields`).
 * check: a Python traceback in the log is turned into what failed and the fix (an import,
   numpy 2, a form that fails to compile).
 * divergence: a script that died with a PETSc ``DIVERGED_*`` reason or a Newton solver
@@ -53,9 +56,11 @@ from typing import Any
 
 from gymprecice.divergence import first_match
 from gymprecice.errors import CaseError, ConfigError
+from gymprecice.fields import Field
 from gymprecice.hookspecs import InstallStep, hookimpl
 from gymprecice.solver import DoctorCheck, InterfaceGeometry, LaunchSpec, SolverContext
 from gymprecice.stack import command_output, solver_environment
+from gymprecice_fenics import fields as render_fields
 from gymprecice_fenics import solver_env
 from gymprecice_fenics.adapter_config import AdapterConfig, check_against_precice
 
@@ -153,6 +158,7 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
             shutil.rmtree(path)
     for log in run_dir.glob("precice-*.log"):
         log.unlink(missing_ok=True)
+    render_fields.clear_fields(run_dir)
     return True
 
 
@@ -163,7 +169,15 @@ def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
     _check_options(solver)
     script = _script(solver)
     python = _checked_python(solver)
-    return LaunchSpec(argv=[python, "-u", script.name], cwd=solver.run_dir, env=_env(solver))
+    env = {**_env(solver), **render_fields.field_env(solver)}
+    return LaunchSpec(argv=[python, "-u", script.name], cwd=solver.run_dir, env=env)
+
+
+@hookimpl
+def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Field | None:
+    if solver.kind != KIND:
+        return None
+    return render_fields.read_field(solver, name, time)
 
 
 @hookimpl
@@ -205,7 +219,10 @@ def gymprecice_doctor_checks() -> list[DoctorCheck]:
             name="FEniCS (Debian python3-dolfin)",
             ok=bool(dolfin),
             detail=f"python3-dolfin {dolfin}" if dolfin else "not installed",
-            advice="" if dolfin else "`apt-get install python3-dolfin python3-scipy python3-venv`",
+            advice=""
+            if dolfin
+            else "Debian/Ubuntu: `sudo apt-get install python3-dolfin python3-scipy "
+            "python3-venv`, then `gymprecice install fenics`",
         ),
         DoctorCheck(
             name="FEniCS solver environment",

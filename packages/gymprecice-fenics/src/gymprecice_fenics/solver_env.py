@@ -20,7 +20,8 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
-from gymprecice.stack import BuildContext, BuildError, InstallStep, stack_prefix
+from gymprecice.prerequisites import CXX, PKG_CONFIG, Prerequisite
+from gymprecice.stack import BuildContext, BuildError, InstallStep, command_output, stack_prefix
 
 __all__ = [
     "DEBIAN_PACKAGES",
@@ -44,9 +45,9 @@ PYTHON_ENV = "GYMPRECICE_FENICS_PYTHON"
 ENV_DIR = "fenics"
 
 INSTALL_ADVICE = (
-    "install Debian's FEniCS (`apt-get install python3-dolfin python3-scipy python3-venv`; "
-    "`bash scripts/setup.sh` does this) and build the solver environment with "
-    "`gymprecice install fenics`"
+    "install Debian's FEniCS (Debian/Ubuntu: `sudo apt-get install python3-dolfin "
+    "python3-scipy python3-venv`), then build the solver environment: `gymprecice install "
+    "fenics` (from a clone of the repository, `bash scripts/setup.sh` does both)"
 )
 
 # Run by the candidate interpreter: what it can import, and the versions that matter.
@@ -199,8 +200,8 @@ def _build(ctx: BuildContext) -> None:
     if numpy is None:
         raise BuildError(
             f"{ctx.step.title}: {SYSTEM_PYTHON} cannot import dolfin; install Debian's FEniCS "
-            f"(`apt-get install {' '.join(DEBIAN_PACKAGES)}`; `bash scripts/setup.sh` does this) "
-            "and run it again"
+            f"(Debian/Ubuntu: `sudo apt-get install {' '.join(DEBIAN_PACKAGES)}`) and run "
+            "`gymprecice install fenics` again"
         )
     target = env_dir(ctx.prefix)
     # A venv records its own path in its scripts: build it where it will live. A failed
@@ -252,6 +253,20 @@ def _found_elsewhere() -> str | None:
     return f"{report.summary()} (${PYTHON_ENV})" if report.ok else None
 
 
+def _system_fenics() -> bool:
+    return _system_numpy() is not None and (
+        command_output([SYSTEM_PYTHON, "-c", "import venv, ensurepip"]) is not None
+    )
+
+
+#: probed before the build starts (gymprecice.prerequisites)
+SYSTEM_FENICS = Prerequisite(
+    f"Debian's FEniCS for {SYSTEM_PYTHON} (python3-dolfin, python3-scipy, python3-venv)",
+    _system_fenics,
+    DEBIAN_PACKAGES,
+)
+
+
 def fenics_install_step() -> InstallStep:
     """``gymprecice install fenics``: the solver environment in ``<prefix>/fenics``."""
     return InstallStep(
@@ -263,5 +278,7 @@ def fenics_install_step() -> InstallStep:
         found=_found_elsewhere,
         requires=("precice",),
         needs=f"install {' '.join(DEBIAN_PACKAGES)} from Debian and run it again",
+        # pyprecice is compiled for the system Python inside the environment
+        prerequisites=(SYSTEM_FENICS, CXX, PKG_CONFIG),
         key_extra=f"pyprecice {PYPRECICE_VERSION} on {SYSTEM_PYTHON}",
     )

@@ -26,6 +26,7 @@ import tarfile
 from pathlib import Path
 
 from gymprecice.errors import GymPreciceError
+from gymprecice.prerequisites import CXX, MAKE, Prerequisite
 from gymprecice.stack import (
     BuildContext,
     BuildError,
@@ -167,9 +168,9 @@ def _debian_build_tree(ctx: BuildContext, debian_version: str, adapter: Path) ->
             raise BuildError(
                 f"{ctx.step.title}: Debian's OpenFOAM ships no headers and its source package "
                 f"openfoam {source_version} could not be fetched; add a `deb-src` entry for "
-                "your Debian release to the apt sources and run `apt-get update` (`bash "
-                "scripts/setup.sh` does this), or put openfoam_<version>.orig.tar.* in "
-                "$GYMPRECICE_SOURCES"
+                "your Debian release to the apt sources and run `sudo apt-get update` (from a "
+                "clone of the repository, `bash scripts/setup.sh` does this), or put "
+                "openfoam_<version>.orig.tar.* in $GYMPRECICE_SOURCES"
             ) from None
         tarball = next(iter(sorted(fetch.glob("openfoam_*.orig.tar.*"))), None)
         if tarball is None:
@@ -208,6 +209,20 @@ def _ln_include_dirs(options: Path, src: Path) -> list[Path]:
     return [d for d in dict.fromkeys(dirs) if d.is_dir()]
 
 
+def _openfoam_present() -> bool:
+    try:
+        find_openfoam()
+    except GymPreciceError:
+        return False
+    return True
+
+
+#: probed before the build starts (gymprecice.prerequisites)
+OPENFOAM = Prerequisite(
+    "OpenFOAM (its programs on PATH, or its etc/bashrc sourced)", _openfoam_present, ("openfoam",)
+)
+
+
 def openfoam_adapter_step() -> InstallStep:
     return InstallStep(
         name="openfoam-adapter",
@@ -219,8 +234,9 @@ def openfoam_adapter_step() -> InstallStep:
         found=_found_elsewhere,
         requires=("precice",),
         needs=(
-            "install OpenFOAM (Debian: `apt-get install openfoam`), a C++ compiler and make, "
-            "and run it again"
+            "install OpenFOAM (Debian/Ubuntu: `sudo apt-get install openfoam`), a C++ compiler "
+            "and make, and run it again"
         ),
         key_extra=_key_extra(),
+        prerequisites=(CXX, MAKE, OPENFOAM),
     )

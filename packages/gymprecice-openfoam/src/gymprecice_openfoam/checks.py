@@ -327,7 +327,8 @@ def doctor_checks() -> list[DoctorCheck]:
                 "OpenFOAM",
                 False,
                 detail=str(exc).split(". Fix:")[0],
-                advice="install OpenFOAM or source its etc/bashrc",
+                advice="install OpenFOAM (Debian/Ubuntu: `sudo apt-get install openfoam`) or "
+                "source its etc/bashrc; then `gymprecice install openfoam-adapter`",
             )
         )
         return checks

@@ -19,6 +19,12 @@ File layouts (checked against OpenFOAM v1912, and the other layouts in use):
 
 Column names come from the file's own ``# Time`` header line, so every layout reads the
 same way: ``rows.column("Cd")``, ``rows.column("total_x")``.
+
+The solver may run ahead of the controller, so by the time an env reads the step that
+ended at ``t`` the files may hold rows past ``t``: ``wait_until(t)`` hands out only the
+step's rows, up to ``t``, and keeps the later ones for the next read
+(:mod:`gymprecice.readers`); an observation (``.last``) or a reward (``.mean()`` over the
+step) is then the same whatever the solver's lead.
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from gymprecice.errors import GymPreciceError
+from gymprecice.readers import rows_through, time_tolerance
 
 __all__ = [
     "ForceCoeffsReader",
@@ -85,6 +92,10 @@ class Rows:
         if not len(self):
             raise IndexError("no rows")
         return self.values[-1]
+
+    def take(self, start: int, stop: int | None = None) -> Rows:
+        """Rows ``start`` to ``stop`` (excluded), columns and locations kept."""
+        return Rows(self.time[start:stop], self.values[start:stop], self.columns, self.locations)
 
     @staticmethod
     def concatenate(parts: Sequence[Rows]) -> Rows:
@@ -196,6 +207,11 @@ class TableReader:
     is followed); ``start_time`` skips start-time directories before it (an episode's
     reader ignores the pre-run's output). Files renamed by OpenFOAM on a restart at an
     existing time (``force_0.1.dat``) are followed after the original.
+
+    ``wait_until(t, timeout)`` returns the rows of the step that ended at ``t`` (those
+    after the previous ``wait_until``, up to ``t``) and keeps rows past ``t`` for the next
+    read; asked again for the same ``t`` it returns the same rows. ``read_new()`` returns
+    every row not handed out yet, whatever its time.
     """
 
     def __init__(
@@ -214,6 +230,10 @@ class TableReader:
         self._current = -1
         self._columns: tuple[str, ...] = ()
         self._last_time: float | None = None
+        #: rows read from the files but not handed out yet (past a wait_until's time)
+        self._pending: Rows | None = None
+        #: the last wait_until's time and answer, returned again for the same time
+        self._step: tuple[float, Rows] | None = None
         self._closed = False
 
     # ---------------------------------------------------------------- public API
@@ -228,10 +248,16 @@ class TableReader:
         return [s.path for s in self._segments]
 
     def read_new(self) -> Rows:
-        """Rows completed since the last call (possibly none)."""
+        """Every complete row not handed out yet (possibly none), whatever its time."""
+        self._read_files()
+        rows, self._pending = self._pending, None
+        return self._handed_out(rows if rows is not None else self._empty())
+
+    def _read_files(self) -> None:
+        """Add the rows completed in the files since the last look to the pending rows."""
         if self._closed:
             raise ValueError(f"reader of {self.directory} is closed")
-        parts = []
+        parts = [] if self._pending is None else [self._pending]
         if self._current < 0:
             self._discover()
         while self._current >= 0:
@@ -249,29 +275,47 @@ class TableReader:
                 continue
             break
         rows = Rows.concatenate(parts) if parts else self._empty()
+        self._pending = rows if len(rows) else None
+
+    def _handed_out(self, rows: Rows) -> Rows:
         if len(rows):
             self._last_time = float(rows.time[-1])
         return rows
 
     def wait_until(self, time: float, timeout: float, *, max_interval: float = 0.05) -> Rows:
-        """Block until a row at ``time`` (or later) has been read; return all new rows.
+        """Block until a row at ``time`` (or later) has been read; return the step's rows.
 
-        Polls with intervals growing from 1 ms to ``max_interval`` (file polling works on
-        every file system, unlike inotify on network mounts). Raises
-        :class:`OutputTimeoutError` after ``timeout`` seconds.
+        The step's rows are the rows not handed out yet up to the row at ``time``
+        (:func:`~gymprecice.readers.rows_through`); rows past ``time`` stay for the next
+        read, and a second call for the same ``time`` returns the same rows. Polls with
+        intervals growing from 1 ms to ``max_interval`` (file polling works on every file
+        system, unlike inotify on network mounts). Raises :class:`OutputTimeoutError`
+        after ``timeout`` seconds.
         """
+        tolerance = time_tolerance(time, self.time_tolerance)
+        if self._step is not None and abs(self._step[0] - time) <= tolerance:
+            return self._step[1]
         deadline = _time.monotonic() + timeout
-        target = time - self.time_tolerance * max(1.0, abs(time))
-        parts = []
+        target = time - tolerance
         interval = 0.001
         while True:
-            rows = self.read_new()
-            parts.append(rows)
-            if self._last_time is not None and self._last_time >= target:
-                return Rows.concatenate(parts)
+            self._read_files()
+            pending = self._pending
+            seen = float(pending.time[-1]) if pending is not None else self._last_time
+            if seen is not None and seen >= target:
+                if pending is None:
+                    rows = self._empty()
+                else:
+                    count = rows_through(
+                        pending.time, time, self.time_tolerance, handed_out=self._last_time
+                    )
+                    rows = pending.take(0, count)
+                    self._pending = pending.take(count) if count < len(pending) else None
+                self._step = (time, self._handed_out(rows))
+                return rows
             remaining = deadline - _time.monotonic()
             if remaining <= 0:
-                seen = "nothing yet" if self._last_time is None else f"t={self._last_time:g}"
+                seen = "nothing yet" if seen is None else f"t={seen:g}"
                 where = ", ".join(str(p) for p in self.files) or f"{self.directory}/<time>/" + (
                     "|".join(self.file_names)
                 )
@@ -287,6 +331,7 @@ class TableReader:
         clone = type(self).__new__(type(self))
         clone.__dict__.update(self.__dict__)
         clone._segments, clone._current, clone._last_time = [], -1, None
+        clone._pending, clone._step = None, None
         return clone.read_new()
 
     def close(self) -> None:

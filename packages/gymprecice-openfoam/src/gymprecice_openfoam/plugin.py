@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice.errors import CaseError, ConfigError
+from gymprecice.fields import Field
 from gymprecice.hookspecs import InstallStep, hookimpl
 from gymprecice.precice_xml import ParticipantSpec
 from gymprecice.solver import (
@@ -45,6 +46,7 @@ from gymprecice.solver import (
     SolverContext,
 )
 from gymprecice_openfoam import case, checks, divergence, outputs
+from gymprecice_openfoam import fields as render_fields
 from gymprecice_openfoam import mesh as meshes  # the geometry hook's argument is named mesh
 
 KIND = "openfoam"
@@ -124,7 +126,16 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
     if not _mine(solver):
         return None
     case.reset_case(solver)
+    # what env.render() draws, written every action; nothing extra when it does not render
+    render_fields.set_field_writes(Path(solver.run_dir), solver.fields, solver.field_interval)
     return True
+
+
+@hookimpl
+def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Field | None:
+    if not _mine(solver):
+        return None
+    return render_fields.read_field(solver, name, time)
 
 
 @hookimpl

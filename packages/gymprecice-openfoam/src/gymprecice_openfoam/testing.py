@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -32,6 +33,37 @@ CYLINDER_PATCHES = {
 
 def _fmt(v: float) -> str:
     return f"{v:.12g}"
+
+
+def missing_coupled_stack(*programs: str) -> list[str]:
+    """What a real OpenFOAM-preCICE run lacks on this machine (empty when all is there).
+
+    Checks pyprecice v3, each OpenFOAM program in ``programs`` on the PATH and, when they
+    are all there, the OpenFOAM-preCICE adapter's library. The real-stack tests skip
+    with this list as the reason (``GYMPRECICE_REQUIRE_REAL=1`` turns the skip into a
+    failure).
+    """
+    missing = []
+    try:
+        import precice
+
+        if not hasattr(precice, "Participant"):
+            missing.append("pyprecice v3")
+    except ImportError:
+        missing.append("pyprecice (the preCICE library and its Python bindings)")
+    absent = [program for program in programs if shutil.which(program) is None]
+    missing += [f"OpenFOAM ({program})" for program in absent]
+    if not absent:
+        from gymprecice.errors import CaseError
+        from gymprecice_openfoam.installation import find_openfoam
+
+        try:
+            adapter = find_openfoam().find_library()
+        except CaseError:
+            adapter = None
+        if adapter is None:
+            missing.append("the OpenFOAM-preCICE adapter (libpreciceAdapterFunctionObject.so)")
+    return missing
 
 
 def cylinder_block_mesh_dict(

@@ -13,10 +13,10 @@ import hashlib
 import os
 import shutil
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, MutableMapping
 from pathlib import Path
 
-__all__ = ["write_case_files"]
+__all__ = ["apply_edits", "write_case_files"]
 
 
 def write_case_files(name: str, files: Mapping[str, str], root: str | Path | None = None) -> Path:
@@ -53,3 +53,25 @@ def write_case_files(name: str, files: Mapping[str, str], root: str | Path | Non
         if scratch.exists():
             shutil.rmtree(scratch, ignore_errors=True)
     return target
+
+
+def apply_edits(
+    files: MutableMapping[str, str],
+    edits: Iterable[tuple[str, str, str]],
+    case_dir: Path,
+    module: str,
+) -> None:
+    """Replace, in place, each edit's ``old`` text in ``files[rel]`` by ``new``.
+
+    Each ``(rel, old, new)`` must match exactly once, so a packaged case that changed
+    under a tutorial fails loudly here, naming the file and the ``FAST_EDITS`` of
+    ``module`` to update, rather than training on a case half edited.
+    """
+    for rel, old, new in edits:
+        count = files[rel].count(old)
+        if count != 1:
+            raise ValueError(
+                f"{case_dir / rel}: the training case edits {old!r}, which occurs {count} "
+                f"times (expected once); update FAST_EDITS in {module} to the packaged case"
+            )
+        files[rel] = files[rel].replace(old, new)

@@ -1,209 +1,229 @@
-"""The tutorial environments: one table that the plugin, the commands and the API read.
+"""The tutorial environments: their Gymnasium ids, classes and lab cards, in one table.
 
-Kept free of gymprecice's plugin machinery and of the commands, so that ``plugin.py``
-(loaded on every ``import gymprecice``) and ``cli.py`` / ``train.py`` / ``evaluate.py``
-each import it without importing one another.
+The plugin (``plugin.py``) registers each row with ``register(id, entry_point,
+card=card)``, the public route every environment package takes: ``gymprecice train``,
+``evaluate``, ``benchmark`` and the other lab commands (``gymprecice-lab``) read these
+cards and nothing else of the tutorials. Every field a command reads is written out here,
+also where it equals the card's default, so that the table alone says how the lab treats
+each env. Kept free of plugin machinery and of anything heavy: ``plugin.py`` is loaded on
+every ``import gymprecice``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from gymprecice.card import EnvCard, Reference
 
-__all__ = ["ENVIRONMENTS", "DragFloor", "TutorialEnv", "find_environment"]
-
-
-@dataclass(frozen=True)
-class DragFloor:
-    """Where a cylinder's drag can go by suppressing the shedding, as measured.
-
-    ``floor_cd`` is the drag of the case's steady, symmetric base flow
-    (:mod:`gymprecice_tutorials.base_flow`), ``uncontrolled_cd`` the developed shedding's
-    mean drag; a controller's *fraction of the floor* is how much of the drop between
-    them it takes, ``(uncontrolled_cd - Cd) / (uncontrolled_cd - floor_cd)``: 1 is the
-    whole drop. *Settled* drag leaves out the first ``settle_time`` seconds of an
-    episode, the transient out of the developed shedding.
-    """
-
-    uncontrolled_cd: float
-    floor_cd: float
-    settle_time: float = 2.0
-
-    def fraction(self, cd: float) -> float:
-        """The fraction of the floor's drop that a mean drag ``cd`` reaches."""
-        return (self.uncontrolled_cd - cd) / (self.uncontrolled_cd - self.floor_cd)
-
+__all__ = ["ENVIRONMENTS", "FAST_CYLINDER_FLOOR", "POLICIES"]
 
 #: the training case of the jet and rotating cylinders (3,580 cells): the uncontrolled mean
-#: over 10 s from a held-out start, the base flow of the mid-height cylinder (docs/training.md)
-FAST_CYLINDER_FLOOR = DragFloor(uncontrolled_cd=3.2195, floor_cd=2.9755)
+#: drag over 10 s from a held-out start, and the drag of the base flow of the mid-height
+#: cylinder (docs/training.md); settled: after the first 2 s of transient
+FAST_CYLINDER_FLOOR = Reference(
+    metric="Cd", uncontrolled=3.2195, floor=2.9755, settle_time=2.0, label="drag floor"
+)
 
+#: the package folder of the shipped policies (``gymprecice policies``)
+POLICIES = "gymprecice_tutorials:policies"
 
-@dataclass(frozen=True)
-class TutorialEnv:
-    """One tutorial environment: its command-line name, Gymnasium id and class."""
+#: the ``gymprecice doctor`` checks the cylinders need: OpenFOAM and its preCICE adapter,
+#: blockMesh and, for the two-process cases, decomposePar and mpirun
+_CYLINDER_CHECKS = ("pyprecice", "openfoam", "blockmesh", "decomposepar", "mpirun")
+#: the training cases run one solver rank: no decomposePar, no mpirun
+_ONE_RANK_CHECKS = ("pyprecice", "openfoam", "blockmesh")
+_FLAP_CHECKS = ("pyprecice", "openfoam", "deal.ii", "elasticity")
 
-    name: str
-    env_id: str
-    entry_point: str
-    description: str
-    #: whether ``gymprecice train --double`` can run it on the test double's fake flow
-    double: bool = True
-    #: whether it is built from a case recipe (accepts ``episode_time``, ``double``, ...)
-    recipe: bool = True
-    #: ``gymprecice open-loop``'s default forcing frequency (Hz): near the cylinders'
-    #: shedding frequency; well below the flap's 10 actions per second
-    open_loop_frequency: float = 3.0
-    #: ``evaluate`` / ``baseline`` / ``open-loop``'s default simulated seconds per episode:
-    #: longer than a training episode, to show that control holds (``None``: the case's)
-    rollout_time: float | None = 10.0
-    #: the action in the env's own units, as figures label it, and its bound (``None``:
-    #: none to draw); the jets' flow rate and the cylinder's spin are symmetric boxes
-    action_unit: str = "m³/s"
-    action_bound: float | None = 2.5e-4
-    #: the per-action metric (``info["metrics"]``) that ``gymprecice sweep`` compares
-    #: controllers on, lower is better (``None``: the negated mean reward)
-    objective: str | None = None
-    #: keyword arguments that make the env's uncontrolled flow, where no action means it
-    #: (``gymprecice baseline`` and ``sweep`` add them)
-    baseline_kwargs: tuple[tuple[str, object], ...] = ()
-    #: whether its packaged case keeps starts out of training (``held_out_starts``), the
-    #: starts ``gymprecice benchmark`` evaluates every controller on
-    held_out_starts: bool = False
-    #: ``gymprecice feedback``'s default signal: the ``info["metrics"]`` entry fed back
-    #: (``None``: none; the command then needs ``--signal``)
-    feedback_signal: str | None = "Cl"
-    #: the shipped policy that ``--policy shipped`` means on this env (``None``: the one
-    #: named after it); an env evaluated with the policy of its training case names it
-    shipped_policy: str | None = None
-    #: the drag floor that ``evaluate`` and ``benchmark`` measure a cylinder controller
-    #: against (``None``: not measured for this env)
-    drag_floor: DragFloor | None = None
-    #: ``"module:attribute"`` of the env's own classical feedback family
-    #: (:class:`~gymprecice_tutorials.feedback.FeedbackLaw`), which ``sweep`` and
-    #: ``benchmark`` tune instead of the lift fed back (``None``: the lift's law)
-    feedback_law: str | None = None
-
-
-ENVIRONMENTS: dict[str, TutorialEnv] = {
-    env.name: env
-    for env in (
-        TutorialEnv(
-            "jet-cylinder",
-            "gymprecice/JetCylinder-v0",
-            "gymprecice_tutorials.jet_cylinder.environment:JetCylinderEnv",
-            "two synthetic jets on a cylinder at Re = 100 (Rabault et al. 2019)",
+#: ``(id, "module:Class", lab card)`` of every tutorial environment
+ENVIRONMENTS: tuple[tuple[str, str, EnvCard], ...] = (
+    (
+        "gymprecice/JetCylinder-v0",
+        "gymprecice_tutorials.jet_cylinder.environment:JetCylinderEnv",
+        EnvCard(
+            name="jet-cylinder",
+            description="two synthetic jets on a cylinder at Re = 100 (Rabault et al. 2019)",
+            metrics=("Cd", "Cl"),
+            feedback_signal="Cl",
+            policies=POLICIES,
+            double=True,
+            episode_time=True,
+            rollout_time=10.0,
+            open_loop_frequency=3.0,
+            action_unit="m³/s",
+            action_bound=2.5e-4,
+            solver_checks=_CYLINDER_CHECKS,
+            training_case="jet-cylinder-fast",
         ),
-        TutorialEnv(
-            "rotating-cylinder",
-            "gymprecice/RotatingCylinder-v0",
-            "gymprecice_tutorials.rotating_cylinder.environment:RotatingCylinderEnv",
-            "a rotating cylinder at Re = 100, the action is its angular velocity",
+    ),
+    (
+        "gymprecice/RotatingCylinder-v0",
+        "gymprecice_tutorials.rotating_cylinder.environment:RotatingCylinderEnv",
+        EnvCard(
+            name="rotating-cylinder",
+            description="a rotating cylinder at Re = 100, the action is its angular velocity",
+            metrics=("Cd", "Cl"),
+            feedback_signal="Cl",
+            policies=POLICIES,
+            double=True,
+            episode_time=True,
+            rollout_time=10.0,
+            open_loop_frequency=3.0,
             action_unit="rad/s",
             action_bound=5.0,
+            solver_checks=_CYLINDER_CHECKS,
+            training_case="rotating-cylinder-fast",
         ),
-        TutorialEnv(
-            "jet-cylinder-fast",
-            "gymprecice/JetCylinderFast-v0",
-            "gymprecice_tutorials.fast_cases:JetCylinderFastEnv",
-            "the jet cylinder's training case: coarse mesh, 1 s episodes from eight start "
-            "snapshots, Rabault's reward and jet bound (PPO reaches 95 % of its drag floor "
-            "in minutes on 2 cores: docs/benchmark.md)",
-            action_bound=2.5e-5,
+    ),
+    (
+        "gymprecice/JetCylinderFast-v0",
+        "gymprecice_tutorials.fast_cases:JetCylinderFastEnv",
+        EnvCard(
+            name="jet-cylinder-fast",
+            description="the jet cylinder's training case: coarse mesh, 1 s episodes from "
+            "eight start snapshots, Rabault's reward and jet bound (PPO reaches 95 % of its "
+            "drag floor in minutes on 2 cores: docs/benchmark.md)",
+            metrics=("Cd", "Cl"),
             held_out_starts=True,
-            drag_floor=FAST_CYLINDER_FLOOR,
+            feedback_signal="Cl",
+            reference=FAST_CYLINDER_FLOOR,
+            policies=POLICIES,
+            double=True,
+            episode_time=True,
+            rollout_time=10.0,
+            open_loop_frequency=3.0,
+            action_unit="m³/s",
+            action_bound=2.5e-5,
+            solver_checks=_ONE_RANK_CHECKS,
         ),
-        TutorialEnv(
-            "rotating-cylinder-fast",
-            "gymprecice/RotatingCylinderFast-v0",
-            "gymprecice_tutorials.fast_cases:RotatingCylinderFastEnv",
-            "the rotating cylinder on the jet cylinder's training case",
+    ),
+    (
+        "gymprecice/RotatingCylinderFast-v0",
+        "gymprecice_tutorials.fast_cases:RotatingCylinderFastEnv",
+        EnvCard(
+            name="rotating-cylinder-fast",
+            description="the rotating cylinder on the jet cylinder's training case",
+            metrics=("Cd", "Cl"),
+            held_out_starts=True,
+            feedback_signal="Cl",
+            reference=FAST_CYLINDER_FLOOR,
+            policies=POLICIES,
+            double=True,
+            episode_time=True,
+            rollout_time=10.0,
+            open_loop_frequency=3.0,
             action_unit="rad/s",
             action_bound=2.0,
-            held_out_starts=True,
-            drag_floor=FAST_CYLINDER_FLOOR,
+            solver_checks=_ONE_RANK_CHECKS,
         ),
-        TutorialEnv(
-            "quickstart",
-            "gymprecice/Quickstart-v0",
-            "gymprecice_tutorials.quickstart.environment:QuickstartEnv",
-            "the jet cylinder on a coarse mesh with short episodes (minutes on 2 cores)",
+    ),
+    (
+        "gymprecice/Quickstart-v0",
+        "gymprecice_tutorials.quickstart.environment:QuickstartEnv",
+        EnvCard(
+            name="quickstart",
+            description="the jet cylinder on a coarse mesh with short episodes (minutes on "
+            "2 cores)",
+            metrics=("Cd", "Cl"),
+            feedback_signal="Cl",
+            policies=POLICIES,
+            double=True,
+            episode_time=True,
             rollout_time=2.0,
+            open_loop_frequency=3.0,
+            action_unit="m³/s",
+            action_bound=2.5e-4,
+            solver_checks=_ONE_RANK_CHECKS,
         ),
-        TutorialEnv(
-            "perpendicular-flap",
-            "gymprecice/PerpendicularFlap-v0",
-            "gymprecice_tutorials.perpendicular_flap.environment:PerpendicularFlapEnv",
-            "an elastic flap in a channel (OpenFOAM + deal.II FSI), the action steers the inflow",
-            double=False,
-            recipe=False,
+    ),
+    (
+        "gymprecice/PerpendicularFlap-v0",
+        "gymprecice_tutorials.perpendicular_flap.environment:PerpendicularFlapEnv",
+        EnvCard(
+            name="perpendicular-flap",
+            description="an elastic flap in a channel (OpenFOAM + deal.II or FEniCS FSI), "
+            "the action steers the inflow",
+            # a jet as tall as the inlet is the packaged case's reference inflow, whatever
+            # the action (the action space shrinks to the one centre, 2 m)
+            uncontrolled={"jet_height": 4.0},
+            policies=POLICIES,
             open_loop_frequency=0.5,
-            rollout_time=None,
             action_unit="m",
-            action_bound=None,
-            feedback_signal=None,
+            solver_checks=_FLAP_CHECKS,
+            training_case="perpendicular-flap-fast",
         ),
-        TutorialEnv(
-            "perpendicular-flap-fast",
-            "gymprecice/PerpendicularFlapFast-v0",
-            "gymprecice_tutorials.perpendicular_flap.fast:PerpendicularFlapFastEnv",
-            "the flap's training case: damp the swing after a gust (coarse FSI, 3 s "
-            "episodes from gust starts, three held out)",
-            recipe=False,
-            open_loop_frequency=0.6,
-            rollout_time=None,
-            action_unit="m",
-            action_bound=None,
+    ),
+    (
+        "gymprecice/PerpendicularFlapFast-v0",
+        "gymprecice_tutorials.perpendicular_flap.fast:PerpendicularFlapFastEnv",
+        EnvCard(
+            name="perpendicular-flap-fast",
+            description="the flap's training case: damp the swing after a gust (coarse FSI, "
+            "3 s episodes from gust starts, three held out)",
             objective="mean_tip_displacement",
-            baseline_kwargs=(("uncontrolled", True),),
             held_out_starts=True,
-            feedback_signal=None,
+            uncontrolled={"uncontrolled": True},
+            policies=POLICIES,
+            double=True,
+            open_loop_frequency=0.6,
+            action_unit="m",
+            solver_checks=_FLAP_CHECKS,
         ),
-        TutorialEnv(
-            "heated-plate",
-            "gymprecice/HeatedPlate-v0",
-            "gymprecice_tutorials.heated_plate.environment:HeatedPlateEnv",
-            "conjugate heat transfer: hold the plate's interface temperature with a heater "
-            "(OpenFOAM fluid; OpenFOAM or FEniCS plate)",
+    ),
+    (
+        "gymprecice/HeatedPlate-v0",
+        "gymprecice_tutorials.heated_plate.environment:HeatedPlateEnv",
+        EnvCard(
+            name="heated-plate",
+            description="conjugate heat transfer: hold the plate's interface temperature "
+            "with a heater (OpenFOAM fluid; OpenFOAM or FEniCS plate)",
+            objective="tracking_error",
+            held_out_starts=True,
+            uncontrolled={"uncontrolled": True},
+            feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
+            policies=POLICIES,
             shipped_policy="heated-plate-fast",
-            recipe=False,
+            training_case="heated-plate-fast",
+            double=True,
             open_loop_frequency=0.5,
-            rollout_time=None,
             action_unit="K",
-            action_bound=None,
-            objective="tracking_error",
-            baseline_kwargs=(("uncontrolled", True),),
-            held_out_starts=True,
-            feedback_signal=None,
-            feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
+            # the OpenFOAM plate by default; solid="fenics" needs the FEniCS solver env
+            solver_checks=_ONE_RANK_CHECKS,
         ),
-        TutorialEnv(
-            "heated-plate-fast",
-            "gymprecice/HeatedPlateFast-v0",
-            "gymprecice_tutorials.heated_plate.fast:HeatedPlateFastEnv",
-            "the heated plate's training case: a coarser fluid and explicit coupling, "
-            "3.5 s an episode (the task and starts of heated-plate)",
-            recipe=False,
+    ),
+    (
+        "gymprecice/HeatedPlateFast-v0",
+        "gymprecice_tutorials.heated_plate.fast:HeatedPlateFastEnv",
+        EnvCard(
+            name="heated-plate-fast",
+            description="the heated plate's training case: a coarser fluid and explicit "
+            "coupling, 3.5 s an episode (the task and starts of heated-plate)",
+            objective="tracking_error",
+            held_out_starts=True,
+            uncontrolled={"uncontrolled": True},
+            feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
+            policies=POLICIES,
+            double=True,
             open_loop_frequency=0.5,
-            rollout_time=None,
             action_unit="K",
-            action_bound=None,
-            objective="tracking_error",
-            baseline_kwargs=(("uncontrolled", True),),
-            held_out_starts=True,
-            feedback_signal=None,
-            feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
+            solver_checks=_ONE_RANK_CHECKS,
         ),
-    )
-}
-
-
-def find_environment(name: str) -> TutorialEnv:
-    """Look an environment up by command-line name (``jet-cylinder``) or Gymnasium id."""
-    key = name.strip()
-    for env in ENVIRONMENTS.values():
-        if key in (env.name, env.env_id, env.env_id.split("/", 1)[1]):
-            return env
-    raise KeyError(
-        f"no tutorial environment {name!r}; choose one of {', '.join(ENVIRONMENTS)} "
-        f"(or their ids {', '.join(e.env_id for e in ENVIRONMENTS.values())})"
-    )
+    ),
+    (
+        # Two flaps, four participants. The PettingZoo env (one agent per flap) is
+        # gymprecice_tutorials.two_flaps.fast.TwoFlapsFastEnv, which Gymnasium cannot make;
+        # this id is its single-controller view (both slots, both flaps' mean), what the
+        # single-agent lab commands can run and a shared policy is compared with.
+        "gymprecice/TwoFlapsFast-v0",
+        "gymprecice_tutorials.two_flaps.fast:TwoFlapsJointEnv",
+        EnvCard(
+            name="two-flaps-fast",
+            description="two flaps in one channel (OpenFOAM + two deal.II solids), one floor "
+            "slot each: damp both after a gust; one controller for both slots",
+            objective="mean_tip_displacement",
+            held_out_starts=True,
+            uncontrolled={"uncontrolled": True},
+            double=True,
+            open_loop_frequency=0.6,
+            action_unit="x 10 m/s",
+            solver_checks=_FLAP_CHECKS,
+        ),
+    ),
+)

@@ -7,7 +7,7 @@ scripted partner participant (``python -m gymprecice.testing.partner --flow
 gymprecice_tutorials.fake_flow:CylinderWake``) that:
 
 * places its coupling meshes on the recipe's jet or cylinder faces (exactly the vertices
-  the environment uses, :mod:`gymprecice_tutorials.jet_cylinder.geometry`);
+  the environment uses, :mod:`gymprecice_tutorials.cylinder_geometry`);
 * reads the controller's jet velocities (their flow rate ``Q``) or wall velocities (the
   angular velocity ``omega``) and drives a model of the wake with them;
 * writes ``postProcessing/probes/0/p`` (the 151 probes of the recipe) and
@@ -47,11 +47,12 @@ from typing import Any
 
 import numpy as np
 
+from gymprecice.fields import Field
 from gymprecice.precice_xml import PreciceConfig
 from gymprecice.testing import partner
 from gymprecice.testing.flows import Flow
 from gymprecice_tutorials import recipes
-from gymprecice_tutorials.jet_cylinder.geometry import patch_geometry
+from gymprecice_tutorials.cylinder_geometry import patch_geometry
 from gymprecice_tutorials.recipes import CaseSpec, Geometry, Resolution
 from gymprecice_tutorials.recipes import Flow as FlowParameters
 
@@ -234,6 +235,40 @@ class CylinderWake(Flow):
 
     def summary(self) -> dict[str, float]:
         return {"Cd": self.drag, "Cl": self.lift, "u": self.state["u_jet"] + self.state["u_rot"]}
+
+    # -- fields for env.render(): the names the real fluid's plugin answers
+    def field_names(self) -> tuple[str, ...]:
+        return ("U", "p")
+
+    def _grid(self) -> np.ndarray:
+        """Points of the channel outside the cylinder (made once)."""
+        if not hasattr(self, "_points"):
+            g = self.case.geometry
+            x, y = np.meshgrid(np.linspace(0.0, g.length, 133), np.linspace(0.0, g.height, 27))
+            points = np.stack([x.ravel(), y.ravel()], axis=1)
+            keep = np.linalg.norm(points - self.centre, axis=1) > g.radius * 1.05
+            self._points = points[keep]
+        return self._points
+
+    def field(self, name: str, t: float) -> Field | None:
+        """A wake that sways with the shedding amplitude ``z`` (``U``: speed, ``p``)."""
+        if name not in self.field_names():
+            return None
+        g = self.case.geometry
+        points = self._grid()
+        x = (points[:, 0] - self.centre[0]) / g.diameter
+        y = (points[:, 1] - self.centre[1]) / g.diameter
+        inflow = 6.0 * points[:, 1] * (g.height - points[:, 1]) / g.height**2
+        behind = x > 0
+        sway = 0.6 * (self.z * np.exp(-1j * self._wave_k * x)).real * np.tanh(x) * behind
+        width = 0.5 + 0.08 * np.maximum(x, 0.0)
+        deficit = np.exp(-(((y - sway) / width) ** 2)) * np.exp(-0.05 * np.maximum(x, 0.0))
+        deficit *= behind + (1 - behind) * np.exp(-4.0 * x**2)
+        if name == "U":
+            values = inflow * (1.0 - 0.9 * deficit)
+            return Field("U", t, points, values, label="|U| [m/s] (test double)")
+        values = 0.5 * inflow**2 * (1.0 - deficit) - 0.3 * deficit * np.cos(self._wave_k * x)
+        return Field("p", t, points, values, label="p (test double)")
 
     # -- OpenFOAM-format output
     def _open_files(self, directory: Path) -> tuple[Path, Path]:

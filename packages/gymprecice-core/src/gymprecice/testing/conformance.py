@@ -9,7 +9,10 @@ fixtures; the tests come with the base class::
 
     # tests/test_conformance.py of a plugin package
     import pytest
-    from gymprecice.testing.conformance import SolverPluginConformance, make_solver_context
+    from gymprecice.testing.conformance import (
+        SolverPluginConformance,
+        make_solver_context,
+    )
 
     class TestMySolverConformance(SolverPluginConformance):
         @pytest.fixture
@@ -27,7 +30,8 @@ fixtures; the tests come with the base class::
                 source = base / "case" / "solid"
                 source.mkdir(parents=True)
                 (source / "solid.prm").write_text("...")
-                return make_solver_context(kind, source, base, options={"prm": "solid.prm"})
+                options = {"prm": "solid.prm"}
+                return make_solver_context(kind, source, base, options=options)
             return make
 
 Mark the subclass (``pytestmark = pytest.mark.openfoam``) when preparing a case needs the
@@ -35,7 +39,8 @@ solver installed. Class attributes tune the suite: ``requires_entry_point`` (the
 must be declared in the ``gymprecice`` entry-point group) and ``heavy_modules`` (modules
 that importing the plugin module must not import, so ``import gymprecice`` stays fast).
 
-This module imports pytest: it is meant for test suites only.
+This module imports pytest: it is meant for test suites only, and pytest comes with the
+``testing`` extra (``pip install 'gymprecice-core[testing]'``).
 """
 
 from __future__ import annotations
@@ -54,7 +59,13 @@ from types import ModuleType
 from typing import Any
 
 import numpy as np
-import pytest
+
+from gymprecice.optional import optional_import_error
+
+try:
+    import pytest
+except ModuleNotFoundError as exc:  # say which extra brings it: gymprecice-core[testing]
+    raise optional_import_error(exc, __name__) from None
 
 from gymprecice import hookspecs, lifecycle
 from gymprecice.plugins import (
@@ -262,6 +273,7 @@ class SolverPluginConformance:
             "mesh": "Conformance-Mesh",
             "name": "conformance-output",
             "options": {},
+            "time": 0.0,
         }
         spec = getattr(manager.hook, hook).spec
         return {arg: sample[arg] for arg in spec.argnames}

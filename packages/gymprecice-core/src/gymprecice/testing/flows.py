@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from gymprecice.fields import Field, grid_points
 from gymprecice.precice_xml import PreciceConfig
 from gymprecice.solver import InterfaceGeometry
 
@@ -181,6 +182,14 @@ class Flow:
         ``--write-every-step``.
         """
 
+    def field_names(self) -> tuple[str, ...]:
+        """The fields :meth:`field` can draw (``env.render()``); none by default."""
+        return ()
+
+    def field(self, name: str, t: float) -> Field | None:
+        """Field ``name`` of the current state at time ``t``, for core to draw."""
+        return None
+
 
 class NullFlow(Flow):
     """Writes zeros, ignores its input: the smallest participant that couples."""
@@ -286,6 +295,18 @@ class CylinderFlow(Flow):
 
     def summary(self) -> dict[str, float]:
         return {"Cd": self.drag, "Cl": self.lift, "q": self.actuation}
+
+    def field_names(self) -> tuple[str, ...]:
+        return ("p",)
+
+    def field(self, name: str, t: float) -> Field | None:
+        """The pressure of :meth:`pressure` on a grid around the cylinder and its wake."""
+        if name != "p":
+            return None
+        points, _ = grid_points(np.linspace(-0.2, 0.8, 61), np.linspace(-0.2, 0.2, 25))
+        outside = np.linalg.norm(points - CYLINDER_CENTER, axis=1) > CYLINDER_RADIUS
+        points = points[outside]
+        return Field("p", t, points, self.pressure(points), label="p (fake)")
 
     def write_outputs(self, directory: Path, t: float) -> None:
         probes = Path(directory) / "postProcessing" / "probes" / "0" / "p"
@@ -416,6 +437,19 @@ class FlapFluid(Flow):
     def summary(self) -> dict[str, float]:
         return {"F": self.state["force"], "d": self.state["d"], "u_in": self.state["u_in"]}
 
+    def field_names(self) -> tuple[str, ...]:
+        return ("p",)
+
+    def field(self, name: str, t: float) -> Field | None:
+        """A pressure that the force raises in front of the flap (x < 0)."""
+        if name != "p":
+            return None
+        points, triangles = grid_points(np.linspace(-1.5, 1.5, 31), np.linspace(0.0, 2.0, 21))
+        x, y = points[:, 0], points[:, 1]
+        bump = np.exp(-(x**2) - 0.5 * (y - 0.5 * FLAP_HEIGHT) ** 2)
+        values = self.state["force"] * np.tanh(-4.0 * x) * bump + 0.1 * self.state["u_in"]
+        return Field("p", t, points, values, triangles=triangles, label="p (fake)")
+
 
 class FlapSolid(Flow):
     """Solid side of a fake FSI: a linear spring, ``d = F_total / stiffness``.
@@ -456,6 +490,20 @@ class FlapSolid(Flow):
 
     def summary(self) -> dict[str, float]:
         return {"d": self.state["d"], "F": self.state["force"]}
+
+    def field_names(self) -> tuple[str, ...]:
+        return ("displacement",)
+
+    def field(self, name: str, t: float) -> Field | None:
+        """The flap (0.1 wide) bent by the spring's displacement, growing with height."""
+        if name != "displacement":
+            return None
+        points, triangles = grid_points([-0.05, 0.05], np.linspace(0.0, FLAP_HEIGHT, 11))
+        disp = np.zeros_like(points)
+        disp[:, 0] = self.state["d"] * 2.0 * points[:, 1] / FLAP_HEIGHT
+        return Field(
+            "displacement", t, points, disp, triangles=triangles, displacement=disp, label="|d|"
+        )
 
 
 class ClockFlow(Flow):

@@ -8,10 +8,12 @@ so ``--library precice`` runs the very same loop against real preCICE.
 
 Usage::
 
-    python -m gymprecice.testing.partner --config precice-config.xml --participant Fluid \\
+    python -m gymprecice.testing.partner --config precice-config.xml \\
+        --participant Fluid \\
         [--flow gymprecice.testing.flows:CylinderFlow] [--option KEY=VALUE ...] \\
         [--library gymprecice.testing.fake_precice|precice] [--dt SECONDS] \\
-        [--crash-at-window N] [--hang-at-window N] [--diverge-at-window N] [--exit-code CODE] \\
+        [--crash-at-window N] [--hang-at-window N] [--diverge-at-window N] \\
+        [--exit-code CODE] \\
         [--step-sleep SECONDS] [--write-outputs DIR [--write-every-step]]
 
 One line per completed time window goes to stdout (``[Fluid] window 3 t=0.03 Cd=...``),
@@ -36,6 +38,13 @@ scheme, whose window-end ``advance`` blocks until the first participant's next w
 written its rows before it waits (with the default, the first participant would wait for
 rows that come only after its own next ``advance``: a deadlock). With implicit coupling
 every iteration's rows are written, as OpenFOAM does.
+
+Fields (``env.render()``): when core sets ``GYMPRECICE_FIELDS`` (the env renders), the
+partner writes each named field of its flow (:meth:`~gymprecice.testing.flows.Flow.field`)
+to ``gymprecice-fields/<name>.npz`` at time 0 and on the last solver step of every
+window, before ``advance`` (so in a serial scheme the file is there when the controller
+gets the window's data). A field the flow does not know ends the partner at once, with
+the names it knows in its log; without the variable nothing is written.
 """
 
 from __future__ import annotations
@@ -52,6 +61,7 @@ from typing import Any
 
 import numpy as np
 
+from gymprecice.fields import requested_fields, write_field_file
 from gymprecice.precice_xml import load_precice_config
 
 __all__ = ["DEFAULT_FLOW", "DEFAULT_LIBRARY", "command", "load_flow", "main", "run"]
@@ -190,6 +200,15 @@ def run(args: argparse.Namespace) -> int:
     spec = cfg.participant(name)
     flow = load_flow(args.flow)(cfg, name, _options(args.option))
     precice = importlib.import_module(args.library)
+    drawn = requested_fields()
+    unknown = [field for field in drawn if field not in flow.field_names()]
+    if unknown:
+        sys.stderr.write(
+            f"[{name}] ERROR: field(s) {unknown} requested for rendering, but flow "
+            f"{type(flow).__name__} writes {list(flow.field_names())}; fix the env's "
+            "render_fields\n"
+        )
+        return 2
     faults.check(0)
     participant = precice.Participant(name, str(args.config), 0, 1)
     ids: dict[str, np.ndarray] = {}
@@ -201,6 +220,7 @@ def run(args: argparse.Namespace) -> int:
         for data, mesh in spec.write_data:
             if mesh in ids:
                 participant.write_data(mesh, data, ids[mesh], flow.output(data, mesh))
+    _write_fields(flow, drawn, 0.0)
     participant.initialize()
     for mesh in spec.api_access_meshes:
         mesh_ids, coords = participant.get_mesh_vertex_ids_and_coordinates(mesh)
@@ -214,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
     while participant.is_coupling_ongoing():
         if participant.requires_writing_checkpoint():
             saved = (flow.checkpoint(), t)
-        dt = participant.get_max_time_step_size()
+        dt = window_left = participant.get_max_time_step_size()
         if args.dt:
             dt = min(args.dt, dt)
         inputs = {
@@ -231,6 +251,8 @@ def run(args: argparse.Namespace) -> int:
         if every_step:
             assert out_dir is not None
             flow.write_outputs(out_dir, t + dt)
+        if drawn and dt >= window_left - 1e-9 * max(window_left, 1.0):
+            _write_fields(flow, drawn, t + dt)  # the window's last step: a frame's state
         participant.advance(dt)
         iterations += 1
         if participant.requires_reading_checkpoint():
@@ -249,6 +271,13 @@ def run(args: argparse.Namespace) -> int:
     participant.finalize()
     print(f"[{name}] finished after {window} windows, t={t:.10g}", flush=True)
     return faults.at_end()
+
+
+def _write_fields(flow: Any, names: list[str], t: float) -> None:
+    for field_name in names:
+        field = flow.field(field_name, t)
+        if field is not None:
+            write_field_file(".", field)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -45,7 +45,7 @@ from gymprecice.vector.failures import (
     describe_exception,
 )
 from gymprecice.vector.gymnasium import ResilientVectorEnv
-from gymprecice.vector.local import LocalBackend, _recv_bytes  # noqa: F401 (tests read it)
+from gymprecice.vector.local import LocalBackend
 from gymprecice.vector.pool import (
     DEFAULT_CALL_TIMEOUT,
     DEFAULT_CLOSE_TIMEOUT,

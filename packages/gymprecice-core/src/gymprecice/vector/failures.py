@@ -154,7 +154,9 @@ def _importable_here(cls: type) -> bool:
     return module is not None and target is cls
 
 
-def _unpickle(data: bytes | None) -> BaseException | None:
+def unpickle_exception(data: bytes | None) -> BaseException | None:
+    """The exception a worker pickled into its failure description (``None``: none was, or
+    it does not unpickle here)."""
     if not data:
         return None
     try:

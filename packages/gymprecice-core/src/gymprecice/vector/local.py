@@ -179,7 +179,7 @@ class LocalHost:
         try:
             # Only the sentinel fired: the worker exited; a reply it sent first still counts.
             if fd in ready_fds or _readable({fd: 0}, 0.0):
-                data = _recv_bytes(fd, time.monotonic() + MESSAGE_TIMEOUT_S)
+                data = recv_bytes(fd, time.monotonic() + MESSAGE_TIMEOUT_S)
                 return Reply("message", ForkingPickler.loads(data))
         except TimeoutError:
             return TIMEOUT
@@ -289,7 +289,7 @@ def _readable(fds: Mapping[int, int], timeout: float | None) -> dict[int, set[in
     return ready
 
 
-def _recv_bytes(fd: int, deadline: float) -> bytes:
+def recv_bytes(fd: int, deadline: float) -> bytes:
     """One message framed like :meth:`multiprocessing.connection.Connection.send_bytes`.
 
     ``Connection.recv`` blocks until the whole message is there: a worker stopped (or

@@ -52,7 +52,7 @@ from gymprecice.vector.failures import (
     EnvFailedError,
     EnvFailure,
     FailureBudgetExceededError,
-    _unpickle,
+    unpickle_exception,
 )
 
 log = logging.getLogger("gymprecice.vector")
@@ -742,7 +742,7 @@ class _FatalFailure(Exception):
         self.description = description
 
     def rebuild(self) -> BaseException:
-        original = _unpickle(self.description.get("pickled"))
+        original = unpickle_exception(self.description.get("pickled"))
         text = (
             f"env {self.failure.env_index} failed with an error that restarting cannot fix, so "
             f"the run stops: {self.failure.type}: {self.failure.message}"
@@ -765,7 +765,7 @@ class _CallFailed:
     def exception(self) -> BaseException:
         what = self.data[0] if isinstance(self.data, tuple) and self.data else self.data
         if self.description is not None:
-            original = _unpickle(self.description.get("pickled"))
+            original = unpickle_exception(self.description.get("pickled"))
             if original is not None:
                 with contextlib.suppress(Exception):
                     original.add_note(f"(raised by {self.command} {what!r} in env {self.index})")

@@ -38,9 +38,11 @@ from typing import Any
 
 import numpy as np
 
+from gymprecice.fields import Field, grid_points
 from gymprecice.precice_xml import PreciceConfig
 from gymprecice.testing import partner
 from gymprecice.testing.flows import Flow
+from gymprecice_tutorials.heated_plate.packaged_case import WINDOW, case_files
 
 __all__ = ["LumpedPlate", "double_case_files"]
 
@@ -94,6 +96,26 @@ class LumpedPlate(Flow):
 
     def summary(self) -> dict[str, float]:
         return {"T": self.state["T"], "heater": self.state["heater"]}
+
+    # -- fields for env.render(): the fluid's and the plate's temperature
+    def field_names(self) -> tuple[str, ...]:
+        return ("T-fluid", "T")
+
+    def field(self, name: str, t: float) -> Field | None:
+        s = self.state
+        if name == "T":  # the plate, x in [0, 1], y in [-0.25, 0]: heater below
+            points, triangles = grid_points(np.linspace(0.0, 1.0, 21), np.linspace(-0.25, 0.0, 6))
+            depth = -points[:, 1] / 0.25
+            values = s["T"] + (s["heater"] - s["T"]) * depth
+            return Field(name, t, points, values, triangles=triangles, label="plate T [K]")
+        if name == "T-fluid":  # the channel above it, warmed along the plate
+            points, triangles = grid_points(np.linspace(0.0, 3.0, 46), np.linspace(0.0, 0.5, 11))
+            x, y = points[:, 0], points[:, 1]
+            layer = np.exp(-y / (0.05 + 0.05 * np.clip(x, 0.0, 3.0)))
+            warm = (s["T"] - INFLOW_TEMPERATURE) * layer * np.clip(x, 0.0, 1.0)
+            values = INFLOW_TEMPERATURE + warm + (s["fluid"] - INFLOW_TEMPERATURE) * layer
+            return Field(name, t, points, values, triangles=triangles, label="fluid T [K]")
+        return None
 
 
 def precice_config(end_time: float, window: float) -> str:
@@ -167,8 +189,6 @@ def precice_config(end_time: float, window: float) -> str:
 
 def double_case_files(end_time: float, *, library: str = DOUBLE_LIBRARY) -> dict[str, str]:
     """Files of the heated plate on the test double, its run ending at ``end_time``."""
-    from gymprecice_tutorials.heated_plate.environment import WINDOW, case_files
-
     config: dict[str, Any] = json.loads(case_files("openfoam", end_time)["gymprecice-config.json"])
     argv = partner.command(
         "{precice_config}",  # the env's own copy, substituted by the "command" kind

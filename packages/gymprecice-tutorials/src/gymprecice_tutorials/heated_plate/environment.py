@@ -42,9 +42,7 @@ interface temperatures agree to within :data:`SOLID_AGREEMENT_K` (see docs/train
 
 from __future__ import annotations
 
-import json
 import math
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -53,8 +51,10 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.core import Adapter
+from gymprecice.fields import Overlay
 from gymprecice_tutorials.case_files import write_case_files
-from gymprecice_tutorials.heated_plate import CASE_DIR
+from gymprecice_tutorials.episodes import read_split
+from gymprecice_tutorials.heated_plate.packaged_case import SOLIDS, case_files
 
 __all__ = [
     "ACTION_TIME",
@@ -67,8 +67,7 @@ __all__ = [
     "draw_start",
 ]
 
-#: preCICE time window (s) and the time one action spans (10 windows)
-WINDOW = 0.01
+#: the time one action spans (10 preCICE windows of ``WINDOW``)
 ACTION_TIME = 0.1
 #: the heater temperature range (K) and the tutorial's fixed bottom temperature
 HEATER_RANGE = (300.0, 340.0)
@@ -77,8 +76,6 @@ REFERENCE_HEATER = 310.0
 REFERENCE_INFLOW = 0.1
 INFLOW_RANGE = (0.03, 0.3)
 SETPOINT_RANGE = (304.0, 308.0)
-#: solver directory of each plate
-SOLIDS = {"openfoam": "solid-openfoam", "fenics": "solid-fenics"}
 #: the largest difference (K) between the two plates' mean interface temperature over one
 #: uncontrolled episode that the real-stack test accepts
 SOLID_AGREEMENT_K = 0.05
@@ -113,34 +110,6 @@ def draw_start(rng: np.random.Generator, episode_time: float) -> Start:
     return Start(
         float(rng.choice(setpoints)), float(rng.choice(times)), float(rng.choice(velocities))
     )
-
-
-def case_files(solid: str, end_time: float) -> dict[str, str]:
-    """The packaged case with one plate (``solid``) and the coupling ending at ``end_time``."""
-    if solid not in SOLIDS:
-        raise ValueError(f"solid must be one of {sorted(SOLIDS)}, got {solid!r}")
-    keep = SOLIDS[solid]
-    files: dict[str, str] = {}
-    for path in sorted(CASE_DIR.rglob("*")):
-        rel = path.relative_to(CASE_DIR).as_posix()
-        top = rel.split("/", 1)[0]
-        if not path.is_file() or (top in SOLIDS.values() and top != keep):
-            continue
-        files[rel] = path.read_text()
-    config = json.loads(files["gymprecice-config.json"])
-    config["environment"] = {"name": f"heated_plate-{solid}"}
-    config["physics_simulation_engine"]["solvers"]["solid"] = {
-        "kind": solid,
-        "path": keep,
-        "participant": "Solid",
-    }
-    files["gymprecice-config.json"] = json.dumps(config, indent=4) + "\n"
-    files["precice-config.xml"] = re.sub(
-        r'<max-time value="[^"]*" />',
-        f'<max-time value="{end_time:.10g}" />',
-        files["precice-config.xml"],
-    )
-    return files
 
 
 class HeatedPlateEnv(Adapter):
@@ -232,6 +201,31 @@ class HeatedPlateEnv(Adapter):
             return REFERENCE_INFLOW
         return self.start.velocity
 
+    # -- rendering -------------------------------------------------------------------------
+    #: ``render_mode="rgb_array"``: fluid and plate temperature, one frame per action
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    @property
+    def render_fields(self) -> dict[str, tuple[str, ...]]:  # type: ignore[override]
+        """The fluid's and the plate's temperature (one lumped solver on the test double).
+
+        The plate's ``T`` comes from laplacianFoam's time directories or from the FEniCS
+        script's field file, whichever plate the env runs.
+        """
+        if "fluid" in self.config.solvers:
+            if "solid" in self.config.solvers:
+                return {"fluid": ("T",), "solid": ("T",)}
+            return {"fluid": ("T",)}
+        return {solver: ("T-fluid", "T") for solver in self.config.solvers}
+
+    def _render_overlay(self) -> Overlay:
+        """The heater's temperature under the plate."""
+        heater = self.heater_temperature(self.last_action)
+        return Overlay(
+            text=[f"heater T = {heater:.2f} K (reference {REFERENCE_HEATER:g} K)"],
+            arrows=[(x, -0.3, 0.0, 0.08) for x in (0.25, 0.5, 0.75)],
+        )
+
     def heater_temperature(self, action: Any) -> float:
         """The heater temperature an action asks for, clipped to the action space."""
         if self.uncontrolled or self.time < self.settle_time - 1e-9:
@@ -303,18 +297,7 @@ class HeatedPlateEnv(Adapter):
         when none is given), or ``[k]`` with ``"start": k``; any other split draws a training
         start from the seed.
         """
-        split = (options or {}).get("split", "train")
-        if split not in ("train", "eval"):
-            raise ValueError(f"split must be 'train' or 'eval', got {split!r}")
-        start = (options or {}).get("start")
-        if start is not None and not (
-            isinstance(start, int) and not isinstance(start, bool) and 0 <= start < len(EVAL_STARTS)
-        ):
-            raise ValueError(
-                f"reset option start={start!r}: {len(EVAL_STARTS)} held-out starts, use 0 to "
-                f"{len(EVAL_STARTS) - 1}"
-            )
-        self._split, self._split_seed = split, seed if start is None else start
+        self._split, self._split_seed = read_split(options, seed, len(EVAL_STARTS), "starts")
         obs, info = super().reset(seed=seed, options=options)  # draws self.start
         while self.time < self.settle_time - 1e-9:
             obs, _, terminated, truncated, info = super().step(
@@ -325,7 +308,7 @@ class HeatedPlateEnv(Adapter):
                     f"the coupled run ended at t = {self.time:g} s while settling; the case's "
                     "max-time must exceed settle_time"
                 )
-        info = {**info, "start": {**self.start._asdict(), "split": split}}
+        info = {**info, "start": {**self.start._asdict(), "split": self._split}}
         return obs, info
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice_tutorials.feedback import FeedbackLaw
+from gymprecice.card import FeedbackLaw
 from gymprecice_tutorials.heated_plate.environment import (
     ACTION_TIME,
     EVAL_STARTS,
@@ -145,30 +145,6 @@ def constant(heater: float) -> Callable[[np.ndarray], np.ndarray]:
     return lambda _obs: np.array([heater], dtype=np.float32)
 
 
-class PolicyController:
-    """A trained policy as a controller (obs -> heater), acting as evaluation does: the
-    observation normalised with the frozen statistics saved beside the model, the
-    deterministic action mapped from ``[-1, 1]`` onto the heater's range."""
-
-    def __init__(self, spec: str, env: str = "heated-plate") -> None:
-        from gymprecice_tutorials.envs import find_model, load_model, load_normalizer
-        from gymprecice_tutorials.shipped_policies import resolve_policy
-
-        policy = resolve_policy(spec, env)
-        path, _ = find_model(Path(policy.model))
-        self.model = load_model(path)
-        self.stats = load_normalizer(path)
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        x = np.asarray(obs, dtype=np.float32)
-        if self.stats is not None:
-            x = self.stats.normalize_obs(x)
-        action, _ = self.model.predict(x, deterministic=True)
-        unit = float(np.clip(np.asarray(action).reshape(-1)[0], -1.0, 1.0))
-        low, high = HEATER_RANGE
-        return np.array([low + (unit + 1.0) * 0.5 * (high - low)], dtype=np.float32)
-
-
 def sweep(
     env: HeatedPlateEnv,
     grid: Sequence[tuple[float, float, float]],
@@ -260,8 +236,15 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs s
     floats = lambda text: [float(v) for v in text.split(",") if v]  # noqa: E731
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    # labelled by the last part of the spec: runs/heated-plate-fast/sac -> "policy sac"
-    policies = {f"policy {Path(spec).name}": PolicyController(spec) for spec in args.policy}
+    policies = {}
+    if args.policy:  # a trained policy, as the lab evaluates one (gymprecice-lab)
+        from gymprecice_lab.shipped_policies import PolicyController
+
+        # labelled by the last part of the spec: runs/heated-plate-fast/sac -> "policy sac"
+        policies = {
+            f"policy {Path(spec).name}": PolicyController(spec, "heated-plate", HEATER_RANGE)
+            for spec in args.policy
+        }
     env = HeatedPlateEnv(solid=args.solid, double=args.double, run_root=out / "runs")
     started = time.perf_counter()
     try:

@@ -30,11 +30,12 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.core import Adapter, DataRef
+from gymprecice.fields import Overlay
 from gymprecice.solver import InterfaceGeometry, OutputReader
 from gymprecice_openfoam import actuators
 from gymprecice_tutorials import recipes
 from gymprecice_tutorials.case_files import write_case_files
-from gymprecice_tutorials.jet_cylinder.geometry import patch_geometry
+from gymprecice_tutorials.cylinder_geometry import patch_geometry
 from gymprecice_tutorials.recipes import CaseSpec
 
 __all__ = [
@@ -83,7 +84,9 @@ class CylinderFlowEnv(Adapter):
     ``_get_action``. See :class:`JetCylinderEnv` for the keyword arguments.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+    #: ``render_mode="rgb_array"``: the fluid's speed, one frame per action (0.025 s)
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 20}
+    render_fields: ClassVar[dict[str, str]] = {"fluid": "U"}
     recipe: ClassVar[str] = "jet_cylinder"
     #: the fluid solver in gymprecice-config.json (the recipes call it "fluid")
     fluid: ClassVar[str] = "fluid"
@@ -104,6 +107,7 @@ class CylinderFlowEnv(Adapter):
         output_timeout: float = OUTPUT_TIMEOUT,
         case_overrides: Mapping[str, Any] | None = None,
         double_options: Mapping[str, Any] | None = None,
+        render_mode: str | None = None,
     ) -> None:
         if averaging_window <= 0:
             raise ValueError(f"averaging_window must be positive, got {averaging_window}")
@@ -123,7 +127,9 @@ class CylinderFlowEnv(Adapter):
                 )
             if options is None:
                 options, case_dir = case_dir, None
-        super().__init__(options, idx, run_root=run_root, case_dir=case_dir)
+        super().__init__(
+            options, idx, run_root=run_root, case_dir=case_dir, render_mode=render_mode
+        )
         self.reward_offset = float(reward_offset)
         self.lift_penalty = float(lift_penalty)
         self.averaging_window = float(averaging_window)
@@ -387,6 +393,17 @@ class JetCylinderEnv(CylinderFlowEnv):
 
     def _analytic_geometry(self) -> dict[str, InterfaceGeometry]:
         return {name: patch_geometry(self.case_spec, name) for name in ("jet1", "jet2")}
+
+    def _render_overlay(self) -> Overlay:
+        """The jets' flow rate, as text and as arrows out of (or into) the cylinder."""
+        q = float(np.asarray(self.last_action, dtype=float).ravel()[0])
+        g = self.case_spec.geometry
+        (cx, cy), r = g.centre, g.radius
+        length = 1.5 * g.diameter * q / self.max_flow_rate
+        arrows = [(cx, cy + r, 0.0, length), (cx, cy - r, 0.0, length)]  # blow up, suck up
+        return Overlay(
+            text=[f"jet 1 Q = {q:+.3e} m³/s", f"jet 2 Q = {-q:+.3e} m³/s"], arrows=arrows
+        )
 
     def _get_action(self, action: Any, write_var_list: list[DataRef]) -> dict[str, np.ndarray]:
         # Rabault et al.: jet 1 blows what jet 2 sucks (no net mass), radially, with a

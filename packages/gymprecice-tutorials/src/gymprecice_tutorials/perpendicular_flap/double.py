@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from gymprecice.fields import Field, grid_points
 from gymprecice.precice_xml import PreciceConfig
 from gymprecice.solver import InterfaceGeometry
 from gymprecice.testing import partner
@@ -55,8 +56,11 @@ __all__ = [
     "NATURAL_FREQUENCY",
     "STATIC_TIP_ON_FLAP",
     "FlapOscillator",
+    "ScriptedFlap",
     "double_case_files",
     "inlet_faces",
+    "scripted_solid",
+    "swing",
     "training_inlet",
 ]
 
@@ -108,7 +112,56 @@ def training_inlet() -> InterfaceGeometry:
     return inlet_faces(fast_case_files(1.0)[_BLOCK_MESH])
 
 
-class FlapOscillator(Flow):
+def swing(state: dict[str, float], omega: float, zeta: float, dt: float) -> None:
+    """Advance a damped oscillator's ``state`` (``x``, ``v``, ``static``) by ``dt``.
+
+    Exact over the step with the load held: the deviation from the static deflection
+    swings freely at ``omega``, decaying at ``zeta * omega``. Both flap doubles use it.
+    """
+    w, z = omega, zeta
+    wd = w * math.sqrt(1.0 - z * z)
+    decay = math.exp(-z * w * dt)
+    cos, sin = math.cos(wd * dt), math.sin(wd * dt)
+    e0, v0 = state["x"] - state["static"], state["v"]
+    state["x"] = state["static"] + decay * (e0 * cos + (v0 + z * w * e0) / wd * sin)
+    state["v"] = decay * (v0 * cos - (w * w * e0 + z * w * v0) / wd * sin)
+
+
+class ScriptedFlap(Flow):
+    """What both scripted flaps share: the controller's faces as their one mesh, a
+    ``(x, v, static)`` state, and a watch-point log they append a row to each window.
+
+    A subclass sets ``faces_mesh`` and ``faces`` (the controller's interface) and
+    defines ``_start_log`` and ``_row``.
+    """
+
+    faces_mesh: str
+    faces: InterfaceGeometry
+    state: dict[str, float]
+
+    def mesh_coordinates(self, mesh: str) -> np.ndarray:
+        if mesh != self.faces_mesh:
+            return super().mesh_coordinates(mesh)
+        coords = np.ascontiguousarray(self.faces.coordinates, dtype=float)
+        self.meshes[mesh] = coords
+        return coords
+
+    def summary(self) -> dict[str, float]:
+        return {"dx": self.state["x"], "static": self.state["static"]}
+
+    def _start_log(self, directory: Path) -> Path:
+        raise NotImplementedError
+
+    def _row(self, t: float) -> str:
+        raise NotImplementedError
+
+    def write_outputs(self, directory: Path, t: float) -> None:
+        log = self._start_log(Path(directory))
+        with log.open("a") as handle:
+            handle.write(self._row(t))
+
+
+class FlapOscillator(ScriptedFlap):
     """The flap as a damped oscillator driven by the inlet jet (see the module docstring).
 
     Partner options (``--option KEY=VALUE``): ``natural_frequency`` (Hz),
@@ -128,6 +181,7 @@ class FlapOscillator(Flow):
         self.omega = 2.0 * math.pi * float(opt.get("natural_frequency", NATURAL_FREQUENCY))
         self.zeta = float(opt.get("damping_ratio", DAMPING_RATIO))
         self.inlet = training_inlet()
+        self.faces_mesh, self.faces = MESH, self.inlet
         y = self.inlet.coordinates[:, 1]
         self._weights = np.asarray(self.inlet.areas) * np.exp(-y / LOAD_DECAY)
         self._weights /= float(np.sum(self.inlet.areas))
@@ -143,14 +197,6 @@ class FlapOscillator(Flow):
     def _load(self, velocity_x: np.ndarray) -> float:
         return float(np.sum(self._weights * np.asarray(velocity_x, dtype=float) ** 2))
 
-    # -- geometry: the training case's inlet faces
-    def mesh_coordinates(self, mesh: str) -> np.ndarray:
-        if mesh != MESH:
-            return super().mesh_coordinates(mesh)
-        coords = np.ascontiguousarray(self.inlet.coordinates, dtype=float)
-        self.meshes[mesh] = coords
-        return coords
-
     # -- dynamics
     def step(self, t: float, dt: float, inputs: Mapping[tuple[str, str], np.ndarray]) -> None:
         s = self.state
@@ -158,23 +204,34 @@ class FlapOscillator(Flow):
             if mesh == MESH:
                 velocity = np.asarray(values, dtype=float).reshape(len(self.inlet.coordinates), -1)
                 s["static"] = self._gain * self._load(velocity[:, 0])
-        # exact solution over the step with the load held: the deviation from the static
-        # deflection swings freely, decaying at zeta * omega
-        w, z = self.omega, self.zeta
-        wd = w * math.sqrt(1.0 - z * z)
-        decay = math.exp(-z * w * dt)
-        cos, sin = math.cos(wd * dt), math.sin(wd * dt)
-        e0, v0 = s["x"] - s["static"], s["v"]
-        s["x"] = s["static"] + decay * (e0 * cos + (v0 + z * w * e0) / wd * sin)
-        s["v"] = decay * (v0 * cos - (w * w * e0 + z * w * v0) / wd * sin)
+        swing(s, self.omega, self.zeta, dt)
 
     def tip(self) -> tuple[float, float, float, float]:
         """``(dx, dy, fx, fy)`` of the tip now."""
         dx = self.state["x"]
         return dx, -0.6 * dx * dx, TIP_STIFFNESS * self.state["static"], 0.0
 
-    def summary(self) -> dict[str, float]:
-        return {"dx": self.state["x"], "static": self.state["static"]}
+    # -- fields for env.render(): the fluid's speed and the bent flap
+    def field_names(self) -> tuple[str, ...]:
+        return ("U", "displacement")
+
+    def field(self, name: str, t: float) -> Field | None:
+        if name == "displacement":
+            points, triangles = grid_points([-0.05, 0.05], np.linspace(0.0, 1.0, 21))
+            bend = (points[:, 1] / 1.0) ** 2
+            dx = self.state["x"] * bend
+            disp = np.column_stack([dx, -0.6 * dx * dx])
+            return Field(
+                name, t, points, disp, triangles=triangles, displacement=disp, label="|d| [m]"
+            )
+        if name == "U":
+            points, triangles = grid_points(np.linspace(-3.0, 3.0, 61), np.linspace(0.0, 4.0, 41))
+            x, y = points[:, 0], points[:, 1]
+            blocked = np.exp(-((x / 0.4) ** 2) - 4.0 * np.maximum(y - 1.0, 0.0) ** 2) * (y < 1.2)
+            values = (1.0 + 5.0 * self.state["static"]) * (1.0 - 0.8 * blocked)
+            values *= 1.0 + 0.5 * self.state["x"] * np.exp(-(x**2)) + 0.2 * np.tanh(y)
+            return Field(name, t, points, values, triangles=triangles, label="|U| (test double)")
+        return None
 
     # -- preCICE's watch-point log (gymprecice.watchpoints describes the format)
     def _start_log(self, directory: Path) -> Path:
@@ -191,11 +248,6 @@ class FlapOscillator(Flow):
     def _row(self, t: float) -> str:
         # preCICE writes the newline before each row, so the last row is unterminated
         return "\n" + "  ".join(f"{v:>15.8e}" for v in (t, 0.0, 1.0, *self.tip()))
-
-    def write_outputs(self, directory: Path, t: float) -> None:
-        log = self._start_log(Path(directory))
-        with log.open("a") as handle:
-            handle.write(self._row(t))
 
 
 # -- the test-double case ------------------------------------------------------------------
@@ -244,6 +296,37 @@ def precice_config(end_time: float, window: float) -> str:
 """
 
 
+def scripted_solid(
+    path: str, participant: str, flow: str, library: str, options: Mapping[str, Any]
+) -> dict[str, Any]:
+    """The solver entry of a scripted flap: the ``flow`` partner in ``path`` as ``participant``.
+
+    It writes its solid's watch-point log itself, which the deal.II plugin's reader opens
+    (``"outputs": "dealii"``); both flap doubles' cases use it.
+    """
+    argv = partner.command(
+        "{precice_config}",  # the env's own copy, substituted by the "command" kind
+        participant,
+        flow=flow,
+        library=library,
+        options=dict(options),
+        python="{python}",
+        write_outputs=".",
+    )
+    return {
+        "kind": "command",
+        "path": path,
+        "participant": participant,
+        "options": {
+            "argv": argv,
+            "log_name": "partner.log",
+            "outputs": "dealii",
+            # the partner needs no plugins: skip loading them (faster start)
+            "env": {"GYMPRECICE_DISABLE_PLUGINS": "1"},
+        },
+    }
+
+
 def double_case_files(
     end_time: float,
     *,
@@ -257,33 +340,16 @@ def double_case_files(
     log the deal.II plugin's reader opens (``"outputs": "dealii"``).
     """
     config: dict[str, Any] = json.loads(fast_case_files(end_time)["gymprecice-config.json"])
-    argv = partner.command(
-        "{precice_config}",  # the env's own copy, substituted by the "command" kind
+    solid = scripted_solid(
+        SOLVER_DIR,
         PARTICIPANT,
-        flow="gymprecice_tutorials.perpendicular_flap.double:FlapOscillator",
-        library=library,
-        options={"outputs": ".", **dict(flow_options or {})},
-        python="{python}",
-        write_outputs=".",
+        "gymprecice_tutorials.perpendicular_flap.double:FlapOscillator",
+        library,
+        {"outputs": ".", **dict(flow_options or {})},
     )
     config["environment"] = {"name": "perpendicular_flap_fast-double"}
     config["precice"] = {"config_file": "precice-config.xml", "library": library}
-    config["physics_simulation_engine"] = {
-        "solvers": {
-            PerpendicularFlapEnv.SOLID: {
-                "kind": "command",
-                "path": SOLVER_DIR,
-                "participant": PARTICIPANT,
-                "options": {
-                    "argv": argv,
-                    "log_name": "partner.log",
-                    "outputs": "dealii",
-                    # the partner needs no plugins: skip loading them (faster start)
-                    "env": {"GYMPRECICE_DISABLE_PLUGINS": "1"},
-                },
-            }
-        }
-    }
+    config["physics_simulation_engine"] = {"solvers": {PerpendicularFlapEnv.SOLID: solid}}
     config["timeouts"] = {"reset": 120, "progress": 60, "finalize": 10, "kill_grace": 1}
     return {
         "precice-config.xml": precice_config(end_time, WINDOW),

@@ -12,7 +12,7 @@ flap bends and springs back; the agent should keep the flap upright.
   change how much of it there is.
 * **Observation** ``(4,)``: the flap tip's displacement ``(dx, dy)`` and the force on the
   tip ``(fx, fy)`` at the end of the step, from the solid's preCICE watch point
-  ``Flap-Tip`` (``solid-dealii/precice-Solid-watchpoint-Flap-Tip.log``).
+  ``Flap-Tip`` (``precice-Solid-watchpoint-Flap-Tip.log`` in the solid's directory).
 * **Reward**: ``-mean |d|`` over the time windows of the step, the mean magnitude of the
   tip displacement (metres, so a reward of -0.1 means the tip was 10 cm off its rest
   position on average). Averaging over every window of the step, rather than taking the
@@ -26,6 +26,20 @@ there. Each observation waits (``watch_timeout`` seconds at most) for the solid'
 the current time. That wait is also what keeps the env in step with the physics: the
 controller only writes (explicit coupling, nothing to receive), so preCICE's ``advance``
 does not hold it back while fluid and solid iterate a window.
+
+The solid
+---------
+``solid="dealii"`` (default: the deal.II-preCICE adapter's ``elasticity``, 3 x 18 cells
+of degree 4) or ``solid="fenics"`` (preCICE's FEniCS flap, ``case/solid-fenics/solid.py``,
+quadratic triangles with the deal.II solid's coupling vertices, run by the
+gymprecice-fenics plugin in the FEniCS solver environment). Both are the same flap
+(0.1 x 1, E = 4 MPa, nu = 0.3, 3000 kg/m³), the same preCICE participant ``Solid`` with
+the same watch point, so the env's code does not change. Uncontrolled, their swings
+agree within
+:data:`~gymprecice_tutorials.perpendicular_flap.swing.SOLID_AGREEMENT` (measured in
+docs/tutorials/perpendicular-flap.md, "Two solids"). The tip force of the observation is
+the solid's nodal force at the watch point: it depends on where the coupling vertices
+are, which is why the FEniCS solid copies the deal.II solid's.
 """
 
 from __future__ import annotations
@@ -40,10 +54,13 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.core import Adapter
-from gymprecice_tutorials.perpendicular_flap import CASE_DIR
+from gymprecice.fields import Overlay
+from gymprecice_tutorials.case_files import write_case_files
+from gymprecice_tutorials.perpendicular_flap.packaged_case import SOLIDS, case_files, check_solid
 
 __all__ = [
     "INLET_HEIGHT",
+    "SOLIDS",
     "PerpendicularFlapEnv",
     "jet_profile",
     "main",
@@ -53,7 +70,6 @@ __all__ = [
 
 #: height of the channel inlet (x = -3, y in [0, 4])
 INLET_HEIGHT = 4.0
-CONFIG_FILE = CASE_DIR / "gymprecice-config.json"
 
 
 def jet_profile(
@@ -93,18 +109,25 @@ class PerpendicularFlapEnv(Adapter):
     WATCH_POINT = "Flap-Tip"
     #: the controller interface the jet is written to
     INLET = "inlet"
+    #: ``render_mode="rgb_array"``: fluid and bent flap, one frame per action
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(
         self,
         options: Mapping[str, Any] | str | Path | None = None,
         idx: int = 0,
         *,
+        solid: str = "dealii",
         inlet_max_velocity: float = 10.0,
         jet_height: float = 2.0,
         watch_timeout: float = 120.0,
+        run_root: str | Path | None = None,
         **kwargs: Any,
     ) -> None:
-        super().__init__(CONFIG_FILE if options is None else options, idx, **kwargs)
+        self.solid = check_solid(solid)
+        if options is None:
+            options = write_case_files(f"perpendicular-flap-{solid}", case_files(solid), run_root)
+        super().__init__(options, idx, run_root=run_root, **kwargs)
         if not 0.0 < jet_height <= INLET_HEIGHT:
             raise ValueError(f"jet_height must lie in (0, {INLET_HEIGHT}], got {jet_height}")
         self.inlet_max_velocity = float(inlet_max_velocity)
@@ -119,6 +142,28 @@ class PerpendicularFlapEnv(Adapter):
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(4,), dtype=np.float32)
         self._tip: Any = None  # the watch-point reader of the current episode
         self._step_rows = np.zeros((0, 0))
+
+    # -- rendering -------------------------------------------------------------------------
+    @property
+    def render_fields(self) -> dict[str, tuple[str, ...]]:  # type: ignore[override]
+        """The fluid's speed and the flap's displacement, drawn on the bent flap.
+
+        On the real case the fluid's ``U`` comes from OpenFOAM and the solid's
+        ``displacement`` from the deal.II adapter's snapshots or the FEniCS script's field
+        file; the test double's flap hands over both.
+        """
+        if "fluid" in self.config.solvers:
+            return {"fluid": ("U",), self.SOLID: ("displacement",)}
+        return {self.SOLID: ("U", "displacement")}
+
+    def _render_overlay(self) -> Overlay:
+        """The jet: where it blows in at the inlet (x = -3 m), and its centre as text."""
+        centre = self.jet_centre(self.last_action)
+        ys = np.linspace(centre - 0.4 * self.jet_height, centre + 0.4 * self.jet_height, 5)
+        return Overlay(
+            text=[f"jet centre y = {centre:.2f} m (height {self.jet_height:g} m)"],
+            arrows=[(-3.0, float(y), 0.6, 0.0) for y in ys],
+        )
 
     # -- the four user methods -------------------------------------------------------------
     def _get_action(self, action: Any, write_var_list: list) -> dict:
@@ -221,8 +266,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--frequency", type=float, default=0.5, help="sweeps per second")
     parser.add_argument("--steps", type=int, default=None, help="stop after this many steps")
     parser.add_argument("--run-root", default=None, help="where env_0/ is made")
+    parser.add_argument("--solid", choices=sorted(SOLIDS), default="dealii")
     args = parser.parse_args(argv)
-    env = PerpendicularFlapEnv(run_root=args.run_root)
+    env = PerpendicularFlapEnv(solid=args.solid, run_root=args.run_root)
     try:
         result = run_open_loop(env, args.frequency, args.steps)
     finally:

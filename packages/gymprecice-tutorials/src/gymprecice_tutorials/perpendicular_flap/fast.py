@@ -31,8 +31,13 @@ The packaged case with these edits (each measured, docs/training.md "The flap"):
 * fluid mesh 944 cells instead of 3,780 (half the cells in each direction);
 * preCICE time window 0.05 s instead of 0.01 s (fluid time step 0.025 s, the solid's
   step is the window); two windows per action, so 10 actions per second as before;
-* solid elements of degree 2 instead of 4;
+* solid elements of degree 2 instead of 4 (the deal.II solid; the FEniCS solid keeps its
+  quadratic elements on the coupling vertices of degree 2, see ``solid.py``);
 * the coupling's max-time: ``settle_time + episode_time``.
+
+The solid is the deal.II one or, with ``solid="fenics"``, preCICE's FEniCS flap, as for
+PerpendicularFlap-v0: the policy shipped for this case was trained on the deal.II solid
+and is evaluated on both (docs/tutorials/perpendicular-flap.md).
 
 One 4 s run (1 s gust, 3 s episode) costs about 12 s of wall-clock on one core of the
 two, against about 80 s for the packaged case.
@@ -53,7 +58,6 @@ and docs/training.md. The reward, the task's objective, reads the watch point in
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -62,12 +66,14 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice_tutorials.case_files import write_case_files
+from gymprecice_tutorials.episodes import episode_timing, read_split
 from gymprecice_tutorials.perpendicular_flap import double as flap_double
 from gymprecice_tutorials.perpendicular_flap.environment import (
     INLET_HEIGHT,
     PerpendicularFlapEnv,
     jet_profile,
 )
+from gymprecice_tutorials.perpendicular_flap.packaged_case import check_solid
 from gymprecice_tutorials.perpendicular_flap.training_case import (
     ACTION_TIME,
     FAST_EDITS,
@@ -149,7 +155,9 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
       the action: the flap that a controller is judged against (``gymprecice baseline``).
     * ``double=True``: the same controller against gymprecice's preCICE test double and a
       scripted flap (:mod:`gymprecice_tutorials.perpendicular_flap.double`), no solvers
-      needed: what ``gymprecice train perpendicular-flap-fast --double`` runs.
+      needed: what ``gymprecice train perpendicular-flap-fast --double`` runs. The
+      scripted flap stands in for fluid and solid together, so it is the same whichever
+      ``solid`` is named.
     """
 
     def __init__(
@@ -157,6 +165,7 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         options: Mapping[str, Any] | str | Path | None = None,
         idx: int = 0,
         *,
+        solid: str = "dealii",
         episode_time: float = 3.0,
         settle_time: float = 1.0,
         uncontrolled: bool = False,
@@ -165,6 +174,7 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         run_root: str | Path | None = None,
         **kwargs: Any,
     ) -> None:
+        check_solid(solid)
         if observe not in ("watchpoint", "precice"):
             raise ValueError(f"observe must be 'watchpoint' or 'precice', got {observe!r}")
         if observe == "precice" and (double or options is not None):
@@ -173,24 +183,17 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
                 "coupling schemes); it runs on the real solvers, without options or double"
             )
         self.observe = observe
-        for name, value in (("episode_time", episode_time), ("settle_time", settle_time)):
-            steps = value / ACTION_TIME
-            if not math.isfinite(value) or value <= 0 or abs(steps - round(steps)) > 1e-9:
-                raise ValueError(
-                    f"{name} must be a positive multiple of {ACTION_TIME} s (one action), "
-                    f"got {value}"
-                )
-        self.episode_time = float(episode_time)
-        self.settle_time = float(settle_time)
+        self.episode_time, self.settle_time = episode_timing(ACTION_TIME, episode_time, settle_time)
         end_time = self.settle_time + self.episode_time
         if options is None and double:
             options = write_case_files(
                 "perpendicular-flap-fast-double", flap_double.double_case_files(end_time), run_root
             )
         elif options is None:
+            name = "perpendicular-flap-fast" + ("" if solid == "dealii" else f"-{solid}")
             options = write_case_files(
-                f"perpendicular-flap-fast{'-precice' if observe == 'precice' else ''}",
-                fast_case_files(end_time, observe),
+                name + ("-precice" if observe == "precice" else ""),
+                fast_case_files(end_time, observe, solid),
                 run_root,
             )
         elif double:
@@ -198,7 +201,7 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
                 "double=True runs the packaged training case on the test double; with a case "
                 "of your own (options) leave double out"
             )
-        super().__init__(options, idx, run_root=run_root, **kwargs)
+        super().__init__(options, idx, solid=solid, run_root=run_root, **kwargs)
         if not any(solver.kind == "openfoam" for solver in self.config.solvers.values()):
             # No fluid mesh a plugin could read (the test double's scripted flap): give the
             # controller the training case's inlet faces.
@@ -221,18 +224,7 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         0 when none is given), or ``[k]`` with ``"start": k``; any other split draws a
         training gust from the seed.
         """
-        split = (options or {}).get("split", "train")
-        if split not in ("train", "eval"):
-            raise ValueError(f"split must be 'train' or 'eval', got {split!r}")
-        start = (options or {}).get("start")
-        if start is not None and not (
-            isinstance(start, int) and not isinstance(start, bool) and 0 <= start < len(EVAL_GUSTS)
-        ):
-            raise ValueError(
-                f"reset option start={start!r}: {len(EVAL_GUSTS)} held-out gusts, use 0 to "
-                f"{len(EVAL_GUSTS) - 1}"
-            )
-        self._split, self._split_seed = split, seed if start is None else start
+        self._split, self._split_seed = read_split(options, seed, len(EVAL_GUSTS), "gusts")
         obs, info = super().reset(seed=seed, options=options)  # draws self.start
         assert self.start is not None
         while self.time < self.settle_time - 1e-9:
@@ -250,7 +242,7 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
                     f"the coupled run ended at t = {self.time:g} s during the {self.settle_time} s "
                     "gust; the case's max-time must exceed settle_time"
                 )
-        info = {**info, "start": {"gust": list(self.start), "split": split}}
+        info = {**info, "start": {"gust": list(self.start), "split": self._split}}
         return obs, info
 
     @property

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import re
 
+from gymprecice_tutorials.case_files import apply_edits
 from gymprecice_tutorials.perpendicular_flap import CASE_DIR
+from gymprecice_tutorials.perpendicular_flap.packaged_case import SOLIDS, case_files
 
 __all__ = [
     "ACTION_TIME",
@@ -32,6 +34,8 @@ FAST_EDITS: tuple[tuple[str, str, str], ...] = (
     ("fluid-openfoam/system/controlDict", "deltaT          0.01;", "deltaT          0.025;"),
     ("solid-dealii/parameters.prm", "set Time step size  = 0.01", "set Time step size  = 0.05"),
     ("solid-dealii/parameters.prm", "set Polynomial degree = 4", "set Polynomial degree = 2"),
+    # the FEniCS solid copies the deal.II solid's coupling vertices, of degree 2 here
+    ("solid-fenics/solid.py", "DEALII_DEGREE = 4", "DEALII_DEGREE = 2"),
     ("gymprecice-config.json", '"windows": 10', '"windows": 2'),
 )
 #: (file, old text, new text) that give the controller the tip's state through preCICE
@@ -104,15 +108,19 @@ WINDOW = 0.05
 ACTION_TIME = 0.1
 
 
-def fast_case_files(end_time: float, observe: str = "watchpoint") -> dict[str, str]:
-    """The training case's files: the packaged case with :data:`FAST_EDITS` applied and
-    the run's end (preCICE max-time, the solvers' end times) at ``end_time``; with
-    ``observe="precice"``, :data:`PRECICE_OBSERVATION_EDITS` too."""
-    files = {
-        str(path.relative_to(CASE_DIR)): path.read_text()
-        for path in sorted(CASE_DIR.rglob("*"))
-        if path.is_file()
-    }
+def fast_case_files(
+    end_time: float, observe: str = "watchpoint", solid: str = "dealii"
+) -> dict[str, str]:
+    """The training case's files: the packaged case with the solid ``solid``
+    (:mod:`.packaged_case`), :data:`FAST_EDITS` applied and the run's end (preCICE
+    max-time, the solvers' end times) at ``end_time``; with ``observe="precice"``,
+    :data:`PRECICE_OBSERVATION_EDITS` too.
+
+    The edits of a solid's directory apply to that solid only. The FEniCS solid takes its
+    time step from preCICE's window and runs until the coupling ends; its edit makes its
+    coupling vertices those of the deal.II solid of degree 2.
+    """
+    files = case_files(solid)
     edits = [
         *FAST_EDITS,
         *(PRECICE_OBSERVATION_EDITS if observe == "precice" else ()),
@@ -127,15 +135,9 @@ def fast_case_files(end_time: float, observe: str = "watchpoint") -> dict[str, s
             f"endTime         {_fmt(end_time + 1)};",
         ),
     ]
-    for rel, old, new in edits:
-        count = files[rel].count(old)
-        if count != 1:
-            raise ValueError(
-                f"{CASE_DIR / rel}: the training case edits {old!r}, which occurs {count} "
-                "times (expected once); update FAST_EDITS in gymprecice_tutorials."
-                "perpendicular_flap.training_case to the packaged case"
-            )
-        files[rel] = files[rel].replace(old, new)
+    other = {directory for name, directory in SOLIDS.items() if name != solid}
+    edits = [edit for edit in edits if edit[0].split("/", 1)[0] not in other]
+    apply_edits(files, edits, CASE_DIR, "gymprecice_tutorials.perpendicular_flap.training_case")
     xml = "precice-config.xml"
     files[xml], count = re.subn(
         r'<max-time value="[^"]*" />', f'<max-time value="{_fmt(end_time)}" />', files[xml]

@@ -20,10 +20,11 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.core import DataRef
+from gymprecice.fields import Overlay
 from gymprecice.solver import InterfaceGeometry
 from gymprecice_openfoam import actuators
+from gymprecice_tutorials.cylinder_geometry import patch_geometry
 from gymprecice_tutorials.jet_cylinder.environment import CylinderFlowEnv
-from gymprecice_tutorials.jet_cylinder.geometry import patch_geometry
 
 __all__ = ["MAX_OMEGA", "RotatingCylinderEnv"]
 
@@ -59,6 +60,17 @@ class RotatingCylinderEnv(CylinderFlowEnv):
 
     def _analytic_geometry(self) -> dict[str, InterfaceGeometry]:
         return {"cylinder": patch_geometry(self.case_spec, "cylinder")}
+
+    def _render_overlay(self) -> Overlay:
+        """The spin, as text and as the wall's velocity at the top and bottom of the cylinder."""
+        omega = float(np.asarray(self.last_action, dtype=float).ravel()[0])
+        g = self.case_spec.geometry
+        (cx, cy), r = g.centre, g.radius
+        length = 1.5 * g.diameter * omega / self.max_omega  # counter-clockwise: left on top
+        return Overlay(
+            text=[f"spin ω = {omega:+.3f} rad/s ({'counter-' if omega >= 0 else ''}clockwise)"],
+            arrows=[(cx, cy + r, -length, 0.0), (cx, cy - r, length, 0.0)],
+        )
 
     def _get_action(self, action: Any, write_var_list: list[DataRef]) -> dict[str, np.ndarray]:
         omega = float(self._clip(action)[0])

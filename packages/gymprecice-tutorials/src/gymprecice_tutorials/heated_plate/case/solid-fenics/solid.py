@@ -12,7 +12,14 @@ fenicsprecice 2.x couples one mesh per participant, so the heater's mesh goes th
 adapter's own preCICE participant: its vertices are set before ``initialize`` (which starts
 the coupling) and its temperature is read every time step. The controller writes one
 temperature for the whole heater; the plate takes the mean of what it reads.
+
+When the env renders (``render_mode="rgb_array"``), gymprecice sets ``GYMPRECICE_FIELDS``
+and ``GYMPRECICE_FIELD_INTERVAL``; the plate then writes its temperature at the mesh
+vertices to ``gymprecice-fields/T.npz`` at the start and once per action (see
+``gymprecice_fenics.fields``). Otherwise it writes nothing.
 """
+
+import os
 
 import numpy as np
 from fenics import (
@@ -43,6 +50,10 @@ DIFFUSIVITY = 1.0  # m^2/s
 TIME_STEP = 0.01  # s, the preCICE time window
 Y_TOP, Y_BOTTOM = 0.0, -0.25
 HEATER_MESH = "Solid-Mesh-heater"
+FIELDS = [name for name in os.environ.get("GYMPRECICE_FIELDS", "").split(",") if name]
+FIELD_INTERVAL = float(os.environ.get("GYMPRECICE_FIELD_INTERVAL") or TIME_STEP)
+if set(FIELDS) - {"T"}:
+    raise SystemExit(f"solid.py writes the field T only; gymprecice asked for {FIELDS}")
 
 
 class Top(SubDomain):
@@ -84,6 +95,25 @@ w, q = TrialFunction(V_g), TestFunction(V_g)
 flux_form = (inner(w, q) * dx, inner(-CONDUCTIVITY * grad(u_np1), q) * dx)
 t = 0.0
 
+
+def write_temperature(u, time):
+    """``gymprecice-fields/T.npz`` for env.render(), replaced whole (never half written)."""
+    os.makedirs("gymprecice-fields", exist_ok=True)
+    with open("gymprecice-fields/.T.npz", "wb") as out:
+        np.savez(
+            out,
+            time=np.array(time),
+            points=mesh.coordinates(),
+            values=u.compute_vertex_values(mesh),
+            triangles=mesh.cells().astype(np.int64),
+            label=np.array("plate T [K]"),
+        )
+    os.replace("gymprecice-fields/.T.npz", "gymprecice-fields/T.npz")
+
+
+if FIELDS:
+    write_temperature(u_n, t)
+
 while precice.is_coupling_ongoing():
     if precice.requires_writing_checkpoint():
         precice.store_checkpoint(u_n, t, 0)
@@ -103,5 +133,8 @@ while precice.is_coupling_ongoing():
     else:
         u_n.assign(u_np1)
         t += float(dt)
+        frames = t / FIELD_INTERVAL
+        if FIELDS and abs(frames - round(frames)) < 1e-6 * max(1.0, frames):
+            write_temperature(u_n, t)
 
 precice.finalize()

@@ -1,0 +1,550 @@
+"""``gymprecice train | evaluate | baseline | open-loop | feedback | sweep | compare | benchmark
+| time-to-floor | plot | ship-policy | policies``.
+
+Added to the ``gymprecice`` command line by the lab's plugin. ENV is any environment id
+that an installed package registers (or the short name its lab card gives it,
+:mod:`gymprecice.card`); what a command needs beyond the Gymnasium API it reads from that
+card. Every command that runs
+an environment writes into one output directory (``--out``, default
+``runs/<env>/<command>``) its results and a ``manifest.json`` (versions, solver checks,
+case file hashes, seeds, command line), so the directory alone says how it was made::
+
+    gymprecice train jet-cylinder --n-envs 4 --timesteps 100000
+    gymprecice evaluate jet-cylinder --time 10
+    gymprecice baseline jet-cylinder --time 10
+    gymprecice open-loop jet-cylinder --amplitude 0.5 --frequency 3
+    gymprecice feedback jet-cylinder-fast --gain 2 --delay 3 --all-starts
+    gymprecice sweep perpendicular-flap-fast            # uncontrolled, constants, sinusoids
+    gymprecice benchmark jet-cylinder-fast --seeds 5 --algo ppo,sac --workers 2
+    gymprecice time-to-floor runs/jet-cylinder-fast/train   # when it reached 95 % of the floor
+    gymprecice compare runs/perpendicular-flap-fast/sweep runs/perpendicular-flap-fast/evaluate
+    gymprecice plot runs/jet-cylinder/train runs/jet-cylinder/evaluate \\
+        --baseline runs/jet-cylinder/baseline
+    gymprecice ship-policy runs/jet-cylinder/train --name jet-cylinder \\
+        --evaluation runs/jet-cylinder/evaluate
+    gymprecice evaluate jet-cylinder --policy shipped     # no training needed
+
+``--double`` runs any of them against gymprecice's preCICE test double with a scripted
+fake flow (seconds, no solver needed). Without it a command stops at once, in one line,
+when ``gymprecice doctor`` does not find what the environment needs
+(``--require-solvers``: with the doctor's whole report).
+
+This module only composes the parsers, from the option families of
+:mod:`gymprecice_lab.options`; the work is imported when a command runs, so listing
+``gymprecice --help`` never loads torch or matplotlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import importlib
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from gymprecice_lab import options as o
+from gymprecice_lab.hyperparams import ALGORITHMS
+from gymprecice_lab.options import Option, option, positive_float, positive_int
+
+__all__ = ["add_commands"]
+
+
+class Command(NamedTuple):
+    """One sub-command: its one-line help, its description, its options in the order
+    ``--help`` shows them, and what runs it."""
+
+    name: str
+    help: str
+    description: str
+    options: Sequence[Option]
+    run: Callable[[argparse.Namespace], int]
+
+
+def add_commands(sub: Any) -> None:
+    """Add the lab's sub-commands to ``gymprecice``'s argparse sub-parsers."""
+    for command in _commands():
+        parser = sub.add_parser(
+            command.name,
+            help=command.help,
+            description=command.description,
+            formatter_class=argparse.ArgumentDefaultsHelpFormatter,  # every default shown
+        )
+        for each in command.options:
+            each.add_to(parser)
+        parser.set_defaults(func=command.run)
+
+
+def _commands() -> list[Command]:
+    return [
+        _train(),
+        *_rollouts(),
+        _sweep(),
+        _compare(),
+        _benchmark(),
+        _time_to_floor(),
+        _plot(),
+        *_policies(),
+    ]
+
+
+# -- train -------------------------------------------------------------------------------------
+
+#: ``gymprecice train``'s own options: how it learns, keeps and shows its progress
+_TRAINING = (
+    option(
+        "--hyperparams",
+        type=Path,
+        default=None,
+        metavar="FILE.yaml",
+        help="hyperparameters (RL Zoo style: flat, or under the env id); flags override "
+        "them; copied into --out. Besides the algorithm's own: net, normalize, robustness, "
+        "torch_threads (the learner's CPU threads), noise_type/noise_std and "
+        "overlap_updates (SAC, TD3: gradient steps while the solvers compute, "
+        "scripts/sac-overlap.yml) and model_ensemble (PPO: model-ensemble PPO, "
+        "scripts/ppo-model-ensemble.yml)",
+    ),
+    o.N_ENVS,
+    o.TIMESTEPS,
+    option(
+        "--n-steps",
+        type=positive_int,
+        default=None,
+        help="PPO: actions per env per update (80: one jet-cylinder episode)",
+    ),
+    option(
+        "--batch-size",
+        type=positive_int,
+        default=None,
+        help="mini-batch size (PPO: at most n_steps x n_envs)",
+    ),
+    option("--n-epochs", type=positive_int, default=None, help="PPO: epochs per update"),
+    option("--learning-rate", type=positive_float, default=None, help="learning rate"),
+    option("--gamma", type=float, default=None, help="discount factor"),
+    option("--net", default=None, help="hidden layer sizes of policy and value nets, e.g. 64,64"),
+    option(
+        "--normalize",
+        action="store_true",
+        help="normalise observations and rewards (VecNormalize); the statistics are "
+        "saved beside every model and used by evaluate",
+    ),
+)
+
+#: checkpoints, evaluation during training, and how the run shows itself
+_KEEPING = (
+    option(
+        "--checkpoint-every",
+        type=positive_int,
+        default=None,
+        metavar="STEPS",
+        help="save a checkpoint every this many env steps (None: every 10 rollouts)",
+    ),
+    option(
+        "--keep-checkpoints",
+        type=positive_int,
+        default=5,
+        metavar="N",
+        help="keep the newest N checkpoints and the best (highest mean return)",
+    ),
+    option(
+        "--eval-freq",
+        type=positive_int,
+        default=None,
+        metavar="STEPS",
+        help="every this many env steps, evaluate deterministically on a separate env "
+        "(from the held-out starts, in turn) and keep best_model.zip (None: no evaluation "
+        "during training)",
+    ),
+    option("--n-eval-episodes", type=positive_int, default=2, help="episodes per evaluation"),
+    o.FRESH,
+    option(
+        "--vec-env",
+        choices=("auto", "resilient", "subproc", "dummy"),
+        default="auto",
+        help="vector env: fault-tolerant subprocesses (auto, when available), plain SB3 "
+        "subprocesses, or all in this process (debugging)",
+    ),
+    o.RAY,
+    option("--no-progress-bar", action="store_true", help="no progress bar"),
+    option(
+        "--verbose",
+        type=int,
+        choices=(0, 1, 2),
+        default=0,
+        help="0: progress bar and summary; 1: SB3's table every rollout; 2: SB3's debug output",
+    ),
+    option("--device", default="cpu", help="torch device (cuda is refused without CUDA)"),
+)
+
+
+def _train() -> Command:
+    return Command(
+        "train",
+        "train a controller (Stable-Baselines3 PPO, SAC or TD3) on N parallel environments",
+        "Train PPO, SAC or TD3 on a registered environment. Resumes from the newest "
+        "checkpoint in --out unless --fresh is given; a resume must use the run's "
+        "hyperparameters. Ctrl-C, SIGTERM and SIGHUP save the model and a checkpoint. "
+        "Hyperparameters shown as None take the algorithm's default (ppo: n_steps 80, "
+        "batch_size 80, n_epochs 10, learning_rate 3e-4, gamma 0.99, net 512,512; sac/td3: "
+        "batch_size 256, net 256,256, SB3's others, td3 with Gaussian action noise of std "
+        "0.1), then --hyperparams, then the flag.",
+        (*o.env_options(rollout=False), o.ALGO, *_TRAINING, *_KEEPING),
+        functools.partial(_run, "train"),
+    )
+
+
+# -- evaluate, baseline, open-loop, feedback ---------------------------------------------------
+
+
+def _rollouts() -> list[Command]:
+    env = o.env_options(rollout=True)
+    return [
+        Command(
+            "evaluate",
+            "run a trained policy deterministically over a long horizon",
+            "Run a trained policy (deterministic: its mean action) for whole "
+            "episodes and write history.csv, coefficients.csv and summary.json (mean and std "
+            "over the episodes; the %% change against --baseline when given).",
+            (*env, o.POLICY, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.STOCHASTIC, o.BASELINE),
+            functools.partial(_run, "evaluate"),
+        ),
+        Command(
+            "baseline",
+            "run the uncontrolled flow (the zero action clipped into the action box)",
+            "Run the uncontrolled flow: the zero action clipped into the action box, in "
+            "the env's own units (the cylinders: jets closed, cylinder at rest), with the "
+            "env keywords of its lab card's 'uncontrolled' where it declares them: what a "
+            "controller is judged against; same files as evaluate.",
+            (*env, o.EPISODES, o.ALL_STARTS, o.VIDEO),
+            functools.partial(_run, "baseline"),
+        ),
+        Command(
+            "open-loop",
+            "run a sinusoidal open-loop controller",
+            "Force the flow with a sinusoid on every action dimension, the classic "
+            "open-loop control a learned controller should beat; same files as evaluate.",
+            (*env, *o.OPEN_LOOP, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.BASELINE),
+            functools.partial(_run, "open-loop"),
+        ),
+        Command(
+            "feedback",
+            "run a classical feedback law (the lift fed back on the jets)",
+            "Feed one of the env's step metrics (the cylinders' lift Cl) back to "
+            "the actuator: a = clip(centre - gain * half_range * signal(t - delay actions)), "
+            "the textbook first controller a learned one should beat; same files as evaluate. "
+            "`gymprecice sweep --feedback-gains ... --feedback-delays ...` tunes it. An env "
+            "with a feedback law of its own (the heated plate's PID heater) runs one point of "
+            "it instead: --law 'kp=3;ki=50;kd=1'.",
+            (*env, *o.FEEDBACK, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.BASELINE),
+            functools.partial(_run, "feedback"),
+        ),
+    ]
+
+
+# -- sweep, compare ----------------------------------------------------------------------------
+
+
+def _sweep() -> Command:
+    return Command(
+        "sweep",
+        "run the open-loop forcings a learned controller must beat",
+        "Run the uncontrolled flow, N constant actions across the action box and "
+        "a grid of sinusoids (amplitude x frequency) on the held-out starts; write "
+        "sweep.csv, sweep.json (best constant, best sinusoid) and sweep.png.",
+        (
+            *o.env_options(rollout=True),
+            *o.SWEEP_GRID,
+            o.EPISODES.but(default=3, help="held-out starts per controller"),
+            o.workers_option("controllers run at once, each with its own env and core"),
+        ),
+        functools.partial(_run, "sweep"),
+    )
+
+
+def _compare() -> Command:
+    return Command(
+        "compare",
+        "compare evaluated controllers with the uncontrolled flow and the best open loop",
+        "Read gymprecice sweep outputs (the open-loop candidates) and evaluate / "
+        "baseline / open-loop outputs (the controllers to judge), all on the same held-out "
+        "starts, and write compare.md and compare.json: the objective per start, and each "
+        "controller's margin over the uncontrolled flow, the best constant and the best "
+        "sinusoid, per start and as mean and spread. Runs nothing.",
+        (
+            o.runs_argument("output directories"),
+            o.OUT.but(help="where to write (None: beside RUN)"),
+            o.VIDEO.but(
+                nargs=None,
+                const=None,
+                type=Path,
+                help="also put the uncontrolled flow (a baseline RUN made with --video) and each "
+                "controlled one (evaluate RUNs made with --video) side by side, from the same "
+                "start, in FILE.mp4 or FILE.gif (several starts: FILE-start-K.mp4)",
+            ),
+        ),
+        functools.partial(_run, "compare"),
+    )
+
+
+# -- benchmark, time-to-floor ------------------------------------------------------------------
+
+#: ``benchmark``'s classical baselines: the sweep's grid, smaller and about the cylinders'
+#: shedding frequency, and the lift feedback's gains only where the env feeds back a signal
+_BASELINE_GRID = o.adapted(
+    o.SWEEP_GRID,
+    constants={"default": 3, "help": "constant actions in the sweep"},
+    amplitudes={"help": "open-loop sinusoid amplitudes (fractions of the half range)"},
+    frequencies={"default": "1.5,3,6", "help": "open-loop sinusoid frequencies (Hz)"},
+    centre={
+        "help": "the sinusoids' centre as a fraction of the action box (0.5: its middle; the "
+        "flap's best open loop swings about 0.875)"
+    },
+    feedback_gains={
+        "default": None,
+        "help": "feedback gains to sweep (default: -2,-1,1,2 where the feedback is a signal "
+        "fed back, none for an env with a feedback law of its own; empty: no feedback "
+        "baseline)",
+    },
+    feedback_delays={
+        "default": "0,2,4,6",
+        "help": "feedback delays (whole actions; with both signs of gain they span a shedding "
+        "period of the cylinders)",
+    },
+)
+
+#: the evaluation episode's length: benchmark's (its rollout horizon), time-to-floor's
+_EVAL_TIME = option(
+    "--eval-time",
+    type=positive_float,
+    default=None,
+    metavar="SECONDS",
+    help="simulated seconds per evaluation episode (None: the env's rollout horizon)",
+)
+
+
+def _benchmark() -> Command:
+    return Command(
+        "benchmark",
+        "train N seeds per algorithm, evaluate every held-out start, baselines, intervals",
+        "Train each algorithm with seeds 0..N-1 (resumably: a manifest per seed), "
+        "evaluate every policy deterministically from every held-out start, run the "
+        "classical baselines on the same starts (uncontrolled, best constant, best "
+        "open-loop sinusoid, best feedback law of a documented sweep) and write "
+        "results.md/.csv/.json (mean and interquartile mean with 95 % stratified-bootstrap "
+        "intervals) and two figures. Settings are recorded in benchmark.json; a rerun "
+        "with other settings is refused (--fresh starts over). See docs/benchmark.md.",
+        (
+            o.env_argument("; evaluated from its held-out starts, else from seeds"),
+            option(
+                "--seeds",
+                type=positive_int,
+                default=5,
+                help="training seeds per algorithm (0..N-1)",
+            ),
+            o.ALGO.but(choices=None, help=f"algorithms, comma-separated ({', '.join(ALGORITHMS)})"),
+            o.TIMESTEPS.but(help="actions per training seed"),
+            o.N_ENVS.but(help="parallel envs per seed"),
+            option(
+                "--train-args",
+                action="append",
+                default=[],
+                metavar="[ALGO:]FLAGS",
+                help="more `gymprecice train` flags, for every algorithm or (ALGO: prefix) one, "
+                "e.g. 'ppo: --n-steps 40 --net 64,64' (repeatable)",
+            ),
+            o.EPISODE_TIME.but(help="simulated seconds per training episode (None: the case's)"),
+            _EVAL_TIME,
+            o.ENV_KWARGS.but(
+                help="extra keyword arguments of the environment (training and evaluation)"
+            ),
+            o.OUT.but(help="output (None: runs/<env>/benchmark)"),
+            o.DOUBLE.but(help="run on the test double (for tests)"),
+            o.REQUIRE_SOLVERS.but(help="the doctor's whole report when missing"),
+            option(
+                "--retries",
+                type=o.non_negative_int,
+                default=1,
+                help="times a seed whose training fails is run again before the benchmark stops",
+            ),
+            option(
+                "--no-baselines", action="store_true", help="learned controllers only (no sweep)"
+            ),
+            *_BASELINE_GRID,
+            option("--bootstrap-reps", type=positive_int, default=2000, help="bootstrap resamples"),
+            o.workers_option("evaluations and baseline rollouts run at once, each on its own core"),
+            o.FRESH.but(help="start over, deleting the benchmark's runs"),
+            o.RAY.but(
+                help="train every seed at once, its envs as Ray actors on this Ray cluster "
+                "(auto: the one this machine joined), and run the evaluations and the sweep as "
+                "Ray tasks there; needs gymprecice-core[ray], see docs/cluster.md"
+            ),
+        ),
+        functools.partial(_run, "benchmark"),
+    )
+
+
+def _time_to_floor() -> Command:
+    return Command(
+        "time-to-floor",
+        "how soon training runs reached 90 / 95 %% of the drag floor",
+        "Evaluate each training run's checkpoints in order, deterministically "
+        "from every held-out start, until one reaches the highest --fractions of the drag "
+        "floor once settled; print the wall-clock from the training command's start to the "
+        "first checkpoint reaching each fraction and, over several runs (seeds), the median "
+        "with a 95 % bootstrap interval. Writes time_to_floor.json and .csv. See "
+        "docs/benchmark.md.",
+        (
+            o.runs_argument("training directories"),
+            option(
+                "--env",
+                default=None,
+                help="the environment the runs trained on, one whose lab card declares a "
+                "'reference' (None: the first run's, from its manifest)",
+            ),
+            option("--fractions", default="0.9,0.95", help="fractions of the floor's drop"),
+            _EVAL_TIME.but(
+                type=float,
+                default=4.0,
+                metavar=None,
+                help="simulated seconds per evaluation episode (the first 2 s are the transient)",
+            ),
+            o.OUT.but(help="output (None: <first RUN>/time-to-floor)"),
+            o.DOUBLE.but(help="evaluate on the test double (tests)"),
+            o.workers_option("checkpoints evaluated at once, each on its own core"),
+        ),
+        functools.partial(_run, "time-to-floor"),
+    )
+
+
+# -- plot, ship-policy, policies ---------------------------------------------------------------
+
+
+def _plot() -> Command:
+    return Command(
+        "plot",
+        "draw figures: training reward, action history, Cd/Cl against the baseline",
+        "Draw the return over training, the actions and Cd/Cl of run "
+        "directories (train, evaluate, baseline, open-loop).",
+        (
+            o.runs_argument("output directories"),
+            o.BASELINE.but(metavar=None, help="a baseline run to compare Cd/Cl with"),
+            o.OUT.but(help="where figures go (None: <first RUN>/plots)"),
+            option("--format", choices=("png", "pdf", "svg"), default="png", help="file format"),
+            option("--dpi", type=positive_int, default=120, help="resolution of PNGs"),
+            option(
+                "--labels",
+                default=None,
+                help="legend names, one per RUN, comma-separated (None: the directory names)",
+            ),
+            option(
+                "--episode",
+                type=int,
+                default=None,
+                help="episode of the rollouts to draw (None: each run's first); titles say which",
+            ),
+        ),
+        functools.partial(_run, "plot"),
+    )
+
+
+def _policies() -> list[Command]:
+    return [
+        Command(
+            "ship-policy",
+            "copy a training run's final policy into the package (small: for evaluation)",
+            "Copy a `gymprecice train` run's final model (its model.zip, else its "
+            "newest checkpoint) into the package's shipped policies as NAME: the model without "
+            "the optimizer state (PPO.load still reads it), the VecNormalize statistics and "
+            "policy.json (training env and action bound, training command, timesteps, "
+            "wall-clock time, source revision, checksums, and the --evaluation result). Then "
+            "`gymprecice evaluate ENV --policy NAME` runs it without training.",
+            (
+                option("train_dir", type=Path, metavar="TRAIN_DIR", help="a training output"),
+                option(
+                    "--name", default=None, help="the policy's name (None: the training env's name)"
+                ),
+                option(
+                    "--evaluation",
+                    type=Path,
+                    default=None,
+                    metavar="RUN",
+                    help="a `gymprecice evaluate` output of this model, whose result is recorded",
+                ),
+                option(
+                    "--into",
+                    type=Path,
+                    default=None,
+                    metavar="DIR",
+                    help="ship into DIR (None: $GYMPRECICE_POLICIES_DIR, else the package's "
+                    "policies/)",
+                ),
+                option(
+                    "--checkpoint",
+                    default=None,
+                    metavar="best|STEPS",
+                    help="ship a checkpoint instead of the final model: 'best' (highest mean "
+                    "training return, checkpoints/best.json) or a step count",
+                ),
+                option("--force", action="store_true", help="replace a policy of that name"),
+            ),
+            functools.partial(_run, "ship-policy"),
+        ),
+        Command(
+            "policies",
+            "list the trained policies shipped with the package",
+            "One line per shipped policy: its training env, steps, action bound "
+            "and evaluated mean Cd (or the env's objective). Evaluate one with `gymprecice "
+            "evaluate ENV --policy NAME`.",
+            (),
+            functools.partial(_run, "policies"),
+        ),
+    ]
+
+
+# -- running a command -------------------------------------------------------------------------
+
+#: The optional modules a command imports while it runs. They are imported before it
+#: writes anything: in an environment where one is missing, gymprecice's command line says
+#: in one line what to install, and no output directory is left behind.
+_IMPORTS_FIRST: dict[str, tuple[str, ...]] = {
+    "train": ("yaml", "stable_baselines3", "torch"),
+    "evaluate": ("stable_baselines3",),
+    "benchmark": ("yaml", "stable_baselines3", "torch"),
+}
+
+
+def _run(command: str, args: argparse.Namespace) -> int:
+    """Run ``command``: its optional modules first, then its work, imported now."""
+    for module in _IMPORTS_FIRST.get(command, ()):
+        importlib.import_module(module)
+    if command == "train":
+        from gymprecice_lab.train import train_command
+
+        return train_command(args)
+    if command in ("evaluate", "baseline", "open-loop", "feedback"):
+        from gymprecice_lab.evaluate import rollout_command
+
+        return rollout_command(command, args)
+    if command == "sweep":
+        from gymprecice_lab.sweep import sweep_command
+
+        return sweep_command(args)
+    if command == "compare":
+        from gymprecice_lab.compare import compare_command
+
+        return compare_command(args)
+    if command == "benchmark":
+        from gymprecice_lab.benchmark import benchmark_command
+
+        return benchmark_command(args)
+    if command == "time-to-floor":
+        from gymprecice_lab.time_to_floor import time_to_floor_command
+
+        return time_to_floor_command(args)
+    if command == "plot":
+        from gymprecice_lab.plots import plot_command
+
+        return plot_command(args)
+    from gymprecice_lab.shipped_policies import list_command, ship_command
+
+    return ship_command(args) if command == "ship-policy" else list_command(args)

@@ -1,0 +1,142 @@
+"""Running lab commands from lab commands: ``benchmark`` and ``time-to-floor`` are made of them.
+
+``benchmark`` trains with ``gymprecice train``, evaluates with ``gymprecice evaluate`` and
+runs the baselines with ``gymprecice sweep``; ``time-to-floor`` evaluates checkpoints. Each
+piece is the ordinary command, parsed by the same parsers (so with the same defaults) and
+run here or ``workers`` at once in spawned processes, its output directory its record:
+:func:`evaluated` tells a finished evaluation of a model from one still to run, so a
+stopped composite command resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "CommandFailed",
+    "command_status",
+    "evaluated",
+    "exit_status_of",
+    "parse_command",
+    "run_commands",
+    "run_in_pool",
+]
+
+
+class CommandFailed(SystemExit):
+    """Bad input or a failed piece: one line on stderr, ``gymprecice COMMAND: message``,
+    exit status 2 (input) or 1 (a piece failed)."""
+
+    def __init__(self, command: str, message: str, status: int = 2) -> None:
+        print(f"gymprecice {command}: {message}", file=sys.stderr)
+        super().__init__(status)
+
+
+def parse_command(argv: Sequence[str]) -> argparse.Namespace:
+    """``argv`` parsed exactly as ``gymprecice ARGV`` would parse it: by the ``gymprecice``
+    command line itself, with every plugin's commands (the lab's among them)."""
+    from gymprecice.cli import build_parser
+
+    return build_parser().parse_args(list(argv))
+
+
+def command_status(argv: list[str]) -> int:
+    """The exit status of ``gymprecice ARGV`` run in this process (module-level, so that
+    a worker process can run it)."""
+    ns = parse_command(argv)
+    return int(ns.func(ns) or 0)
+
+
+def exit_status_of(call: Callable[..., Any], *args: Any) -> int:
+    """``call(*args)`` in a pool's worker as an exit status: a ``SystemExit`` (a refusal,
+    a failed seed) becomes its status, its message said on stderr, as a worker that
+    raised would never answer."""
+    try:
+        return int(call(*args) or 0)
+    except SystemExit as exc:
+        if isinstance(exc.code, int):
+            return exc.code
+        print(exc.code, file=sys.stderr, flush=True)
+        return 1
+
+
+def evaluated(run: Path, model: Path) -> bool:
+    """Whether ``run`` holds a finished ``gymprecice evaluate`` of ``model`` (its summary,
+    and a manifest recording that model's SHA-256)."""
+    from gymprecice_lab.manifest import file_sha256
+
+    try:
+        manifest = json.loads((run / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return (run / "summary.json").is_file() and manifest.get("settings", {}).get(
+        "model_sha256"
+    ) == file_sha256(model)
+
+
+def _worker_status(argv: list[str]) -> int:
+    """:func:`command_status` in a pool's worker."""
+    return exit_status_of(command_status, argv)
+
+
+def run_commands(
+    commands: list[tuple[list[str], str]], workers: int, command: str = "benchmark"
+) -> None:
+    """Run ``gymprecice`` commands (``(argv, what)``), ``workers`` at once in their own
+    processes (one: here, in turn). Every command runs even if one fails; then the
+    failures are reported (:class:`CommandFailed` of ``command``). Ctrl-C, SIGTERM or
+    SIGHUP stop every worker (and so its solvers) before returning."""
+    if workers <= 1 or len(commands) <= 1:
+        for argv, what in commands:
+            status = command_status(argv)
+            if status:
+                raise CommandFailed(command, f"{what} failed (exit status {status})", 1)
+        return
+    jobs = [((argv,), what) for argv, what in commands]
+    run_in_pool(_worker_status, jobs, workers, command)
+
+
+def run_in_pool(
+    task: Callable[..., int],
+    jobs: list[tuple[tuple[Any, ...], str]],
+    workers: int,
+    command: str = "benchmark",
+) -> None:
+    """Run ``task(*args)`` for every job, ``workers`` at once in spawned processes; a
+    non-zero status or a crash is a failure, reported with the others once all ran."""
+    import multiprocessing
+
+    from gymprecice_lab.callbacks import stop_signals_interrupt
+
+    context = multiprocessing.get_context("spawn")  # never fork a process holding threads
+    failures = []
+    with stop_signals_interrupt():
+        pool = context.Pool(min(workers, len(jobs)), maxtasksperchild=1)
+        try:
+            pending = [(pool.apply_async(task, args), what) for args, what in jobs]
+            for result, what in pending:
+                try:
+                    status = result.get()
+                except Exception as exc:  # a crashed command: reported with the others
+                    failures.append(f"{what}: {type(exc).__name__}: {exc}")
+                else:
+                    if status:
+                        failures.append(f"{what}: exit status {status}")
+        except BaseException:
+            pool.terminate()  # SIGTERM to every worker; their solvers' supervisors follow
+            raise
+        else:
+            pool.close()
+        finally:
+            pool.join()
+    if failures:
+        raise CommandFailed(
+            command,
+            f"{'; '.join(failures)}; the finished ones are kept: run the same command again",
+            1,
+        )

@@ -1,0 +1,277 @@
+"""The environment exactly as ``gymprecice train`` wraps it, and a trained model loaded into it.
+
+A policy trained by the command acts in ``[-1, 1]`` (``RescaleAction``) on observations
+that may be normalised (``VecNormalize``). Run against a bare ``gym.make`` env it would
+act in the wrong units and be clipped at the bound without a word; so the same wrapping
+lives here, for the command and for users::
+
+    from gymprecice_lab.envs import load_policy
+
+    venv, model = load_policy("runs/quickstart/train", "quickstart", double=True)
+    obs = venv.reset()
+    action, _ = model.predict(obs, deterministic=True)
+    obs, reward, done, info = venv.step(action)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from gymprecice_lab.lab_env import find_lab_env
+
+__all__ = [
+    "EPISODE_KEYWORDS",
+    "EpisodeMetrics",
+    "find_model",
+    "load_normalizer",
+    "load_policy",
+    "make_env",
+    "make_env_checked",
+    "vecnormalize_path",
+]
+
+#: Episode means added to the last step's ``info`` by :class:`EpisodeMetrics` and
+#: recorded by the Monitor (``info_keywords``) and in TensorBoard (``env/...``).
+EPISODE_KEYWORDS = ("mean_Cd", "mean_Cl", "action_rms")
+
+_CHECKPOINT = re.compile(r"^(?P<prefix>[a-z0-9]+)_(?P<steps>\d+)_steps\.zip$")
+
+
+class EpisodeMetrics(gym.Wrapper):
+    """Add the episode's mean Cd, mean Cl and action RMS to the final step's ``info``.
+
+    The Monitor records only what the last ``info`` of an episode holds; the cylinders
+    report per-step averages in ``info["metrics"]``. The action RMS is taken in the env's
+    own units (this wrapper sits inside ``RescaleAction``). Metrics an env does not report
+    are NaN, so every env gives the same Monitor columns.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self._sums: dict[str, float] = {}
+        self._steps = 0
+        self._action_sq = 0.0
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        self._sums, self._steps, self._action_sq = {}, 0, 0.0
+        return self.env.reset(**kwargs)
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._steps += 1
+        for name in ("Cd", "Cl"):
+            value = info.get("metrics", {}).get(name)
+            if value is not None:
+                self._sums[name] = self._sums.get(name, 0.0) + float(value)
+        applied = np.asarray(info.get("action", action), dtype=float).reshape(-1)
+        self._action_sq += float(np.mean(applied**2)) if applied.size else 0.0
+        if terminated or truncated:
+            for name in ("Cd", "Cl"):
+                total = self._sums.get(name)
+                info[f"mean_{name}"] = total / self._steps if total is not None else float("nan")
+            info["action_rms"] = float(np.sqrt(self._action_sq / self._steps))
+        return obs, reward, terminated, truncated, info
+
+
+def make_env(
+    env_id: str,
+    idx: int,
+    kwargs: Mapping[str, Any],
+    *,
+    monitor_file: str | None = None,
+    rescale: bool = True,
+    robustness: Mapping[str, Any] | None = None,
+    held_out: bool = False,
+) -> gym.Env:
+    """One environment as training and evaluation see it (module level: picklable).
+
+    ``rescale`` maps a bounded ``Box`` action space to ``[-1, 1]``; ``monitor_file`` records
+    episode returns, lengths and :data:`EPISODE_KEYWORDS` with SB3's ``Monitor``.
+    ``robustness`` (:mod:`gymprecice.robustness`: sensor and action noise, delay,
+    dropout) sits between the policy and the rescaled env, so noise is in the policy's
+    units; the vector env's ``seed`` seeds it. ``held_out`` makes every reset take the
+    env's held-out starts in turn (:class:`gymprecice_lab.starts.HeldOutStarts`: the
+    ``--eval-freq`` env).
+    """
+    import gymprecice  # noqa: F401  (registers the gymprecice/... ids in this process)
+
+    env: gym.Env = gym.make(env_id, idx=idx, **dict(kwargs))
+    if held_out:
+        from gymprecice_lab.starts import HeldOutStarts
+
+        env = HeldOutStarts(env)
+    env = EpisodeMetrics(env)
+    space = env.action_space
+    if (
+        rescale
+        and isinstance(space, gym.spaces.Box)
+        and np.all(np.isfinite(space.low))
+        and np.all(np.isfinite(space.high))
+    ):
+        unit = np.ones(space.shape, dtype=space.dtype)
+        env = gym.wrappers.RescaleAction(env, -unit, unit)
+    if robustness:
+        from gymprecice.robustness import wrap
+
+        env = wrap(env, robustness)
+    if monitor_file is not None:
+        env = _monitor(env, monitor_file)
+    return env
+
+
+def make_env_checked(
+    name: str, env_id: str, idx: int, kwargs: Mapping[str, Any], **options: Any
+) -> gym.Env:
+    """:func:`make_env` for a command: a constructor that rejects the settings (a wrong
+    ``--env-kwargs``) becomes one line naming the flag, not a chained traceback."""
+    try:
+        return make_env(env_id, idx, kwargs, **options)
+    except (TypeError, ValueError) as exc:
+        reason = str(exc).split(" was raised from the environment creator")[0]
+        given = {k: v for k, v in kwargs.items() if k != "run_root"}
+        raise SystemExit(
+            f"gymprecice: {name} does not accept these settings ({json.dumps(given)}): "
+            f"{reason}; fix --env-kwargs (see the env class's docstring for its arguments)"
+        ) from None
+
+
+def _monitor(env: gym.Env, monitor_file: str) -> gym.Env:
+    """SB3's Monitor, appending to the file of a resumed run on the same time axis.
+
+    SB3 writes a header (with ``t_start``) only into a new file and measures ``t`` from
+    the process's start; a resumed run therefore takes the first header's ``t_start``, so
+    that ``load_results`` (``t + t_start``) gives wall-clock times that keep increasing.
+    """
+    from stable_baselines3.common.monitor import Monitor
+
+    path = Path(monitor_file if monitor_file.endswith(".csv") else f"{monitor_file}.monitor.csv")
+    t_start = _header_t_start(path)
+    monitor = Monitor(
+        env,
+        filename=monitor_file,
+        override_existing=t_start is None,
+        info_keywords=EPISODE_KEYWORDS,
+    )
+    if t_start is not None:
+        monitor.t_start = t_start
+    return monitor
+
+
+def _header_t_start(path: Path) -> float | None:
+    """``t_start`` of an existing Monitor file's header (``None``: start a new file)."""
+    if not path.is_file():
+        return None
+    with path.open() as handle:
+        first = handle.readline()
+    try:
+        return float(json.loads(first[1:])["t_start"]) if first.startswith("#") else None
+    except (ValueError, KeyError, TypeError):
+        return None
+
+
+# -- trained models ------------------------------------------------------------------------
+
+
+def vecnormalize_path(model: Path) -> Path:
+    """Where the ``VecNormalize`` statistics of a saved model are.
+
+    SB3's checkpoints name them ``<prefix>_vecnormalize_<steps>_steps.pkl``; any other
+    ``NAME.zip`` (``model.zip``, ``best_model.zip``, a shipped policy) has
+    ``NAME_vecnormalize.pkl`` beside it.
+    """
+    match = _CHECKPOINT.match(model.name)
+    if match:
+        return model.with_name(f"{match['prefix']}_vecnormalize_{match['steps']}_steps.pkl")
+    return model.with_name(f"{model.stem}_vecnormalize.pkl")
+
+
+def load_normalizer(model_path: Path) -> Any:
+    """The frozen ``VecNormalize`` statistics saved with a model (``None`` if none were)."""
+    import pickle
+
+    path = vecnormalize_path(model_path)
+    if not path.is_file():
+        return None
+    with path.open("rb") as handle:
+        stats = pickle.load(handle)
+    stats.training = False
+    return stats
+
+
+def find_model(path: Path) -> tuple[Path, str | None]:
+    """The model file for ``path`` (a ``.zip`` or a training directory) and a note.
+
+    A directory gives its ``model.zip``; a run stopped before writing one (killed, out of
+    time) gives its newest checkpoint, with a note saying so. ``FileNotFoundError``
+    explains what was looked for.
+    """
+    if path.is_file():
+        return path, None
+    if path.is_dir():
+        if (path / "model.zip").is_file():
+            return path / "model.zip", None
+        newest = newest_checkpoint(path / "checkpoints")
+        if newest is not None:
+            return newest[0], f"no model.zip in {path}; using its newest checkpoint {newest[0]}"
+        raise FileNotFoundError(f"no model.zip and no checkpoints/*_steps.zip in {path}")
+    raise FileNotFoundError(f"no trained model at {path}")
+
+
+def newest_checkpoint(directory: Path) -> tuple[Path, int] | None:
+    """The checkpoint with the most env steps in ``directory`` (``None`` if there is none)."""
+    best: tuple[Path, int] | None = None
+    if not directory.is_dir():
+        return None
+    for path in directory.iterdir():
+        match = _CHECKPOINT.match(path.name)
+        if match and (best is None or int(match["steps"]) > best[1]):
+            best = (path, int(match["steps"]))
+    return best
+
+
+def load_model(path: Path, device: str = "cpu") -> Any:
+    """A saved SB3 model of any algorithm ``gymprecice train`` offers (PPO, SAC, TD3)."""
+    from stable_baselines3 import PPO, SAC, TD3
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    data, _, _ = load_from_zip_file(path, device=device, load_data=True)
+    policy = str((data or {}).get("policy_class", ""))
+    cls = SAC if "sac" in policy.lower() else TD3 if "td3" in policy.lower() else PPO
+    return cls.load(path, device=device)
+
+
+def load_policy(
+    model: str | os.PathLike[str],
+    env: str,
+    *,
+    idx: int = 0,
+    device: str = "cpu",
+    **env_kwargs: Any,
+) -> tuple[Any, Any]:
+    """``(vec_env, model)``: the env ``gymprecice train`` trained on, and the model in it.
+
+    ``model`` is a ``.zip`` or a training directory (see :func:`find_model`); ``env`` a
+    registered id or short name; ``env_kwargs`` go to the env (e.g. ``double=True``,
+    ``episode_time=10``). The vector env rescales actions like training did and, when the
+    model was trained with ``--normalize``, normalises observations with the saved
+    statistics (frozen: evaluation does not update them).
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    path, _ = find_model(Path(model))
+    spec = find_lab_env(env)
+    venv: Any = DummyVecEnv([lambda: make_env(spec.env_id, idx, env_kwargs)])
+    stats = vecnormalize_path(path)
+    if stats.is_file():
+        venv = VecNormalize.load(str(stats), venv)
+        venv.training = False
+        venv.norm_reward = False
+    return venv, load_model(path, device=device)

@@ -1,0 +1,163 @@
+"""The measured figures the documentation quotes, read from the result files that hold them.
+
+mkdocs-macros (``plugins: macros`` in mkdocs.yml) calls :func:`define_env` once per build.
+A page that sets ``render_macros: true`` in its front matter can then write, instead of a
+number typed by hand::
+
+    {{ shipped["jet-cylinder-fast"].training }}      1 h 14 min
+    {{ shipped["perpendicular-flap-fast"].means.mean_mean_tip_displacement | round(4) }}
+    {{ score("jet-cylinder-fast", "SAC") }}          88.9 % [87.2 %, 92.7 %]
+    {{ time_to_floor("sac-overlap", 0.95).median }}  11 min 50 s
+    {{ setup.fresh }}                                7 min 40 s
+
+The figures come from:
+
+* ``packages/gymprecice-tutorials/src/gymprecice_tutorials/policies/*/policy.json``: each
+  shipped policy's training run and evaluation, written by ``gymprecice ship-policy``;
+* ``docs/results/benchmark-<env>.json``: ``gymprecice benchmark``'s ``results.json``
+  (the headline controllers of each environment's benchmark);
+* ``docs/results/time-to-floor-jet-cylinder-fast-<recipe>.json``: the ``summary`` of
+  ``gymprecice time-to-floor``'s ``time_to_floor.json``;
+* ``docs/results/setup.json``: the set-up's steps timed on a fresh machine.
+
+Rerunning one of those commands and copying its file over the old one updates every page
+that quotes it; no page holds the number itself. A name that is not there fails the
+build (``on_undefined: strict``), naming the page.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "docs" / "results"
+POLICIES = ROOT / "packages" / "gymprecice-tutorials" / "src" / "gymprecice_tutorials" / "policies"
+
+#: each benchmark's headline metric, the statistic quoted and how a value is written
+HEADLINES: dict[str, tuple[str, str, str]] = {
+    "jet-cylinder-fast": ("settled_floor_fraction", "median", "percent"),
+    "rotating-cylinder-fast": ("settled_floor_fraction", "median", "percent"),
+    "perpendicular-flap-fast": ("mean_tip_displacement", "mean", "{:.4f} m"),
+    "heated-plate-fast": ("mean_tracking_error", "mean", "{:.3f} K"),
+}
+
+
+def clock(seconds: float) -> str:
+    """``11 min 50 s``, ``1 h 14 min`` (an hour or more is given to the minute)."""
+    if not math.isfinite(seconds):
+        return "not reached"
+    seconds = round(seconds)
+    if seconds >= 3600:
+        hours, minutes = divmod(round(seconds / 60), 60)
+        return f"{hours} h {minutes} min" if minutes else f"{hours} h"
+    minutes, rest = divmod(seconds, 60)
+    if not minutes:
+        return f"{rest} s"
+    return f"{minutes} min {rest:02d} s" if rest else f"{minutes} min"
+
+
+def thousands(n: float) -> str:
+    """``48,000``."""
+    return f"{round(n):,}"
+
+
+def _write(value: float, how: str) -> str:
+    if how == "percent":
+        return f"{100 * value:.1f} %"
+    return how.format(value)
+
+
+def _load(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise RuntimeError(f"{path.relative_to(ROOT)}: cannot read the figures: {exc}") from exc
+
+
+def shipped_figures(policy: dict[str, Any]) -> dict[str, Any]:
+    """What a page says about one shipped policy, from its ``policy.json``."""
+    training = policy["training"]
+    evaluation = policy["evaluation"]
+    figures = {
+        "algo": policy["algorithm"].upper(),
+        "actions": thousands(training["timesteps"]),
+        "run_actions": thousands(max(training["timesteps_requested"] or 0, training["timesteps"])),
+        "training": clock(training["wall_clock_seconds"]),
+        "n_envs": training["n_envs"],
+        "command": training["command"],
+        "evaluation_seconds": evaluation["episode_time"],
+    }
+    # each evaluated metric's mean over the evaluation's episodes (its first start on)
+    figures["means"] = {name: stats["mean"] for name, stats in evaluation["over_episodes"].items()}
+    change = evaluation.get("change_percent") or {}
+    if "mean_Cd" in change:
+        figures["drag_drop"] = f"{-change['mean_Cd']:.1f} %"
+    return figures
+
+
+def shipped(policies: Path = POLICIES) -> dict[str, dict[str, Any]]:
+    """Each shipped policy's figures, by name (``jet-cylinder-fast``)."""
+    return {
+        path.parent.name: shipped_figures(_load(path))
+        for path in sorted(policies.glob("*/policy.json"))
+    }
+
+
+def score(env: str, controller: str, results: Path = RESULTS) -> str:
+    """A benchmarked controller's headline figure with its interval: ``88.9 % [87.2 %, 92.7 %]``."""
+    metric, statistic, how = HEADLINES[env]
+    data = _load(results / f"benchmark-{env}.json")
+    for entry in data["controllers"]:
+        if entry["label"] == controller:
+            stat = entry["metrics"][metric][statistic]
+            text = _write(stat["value"], how)
+            if entry["runs"] > 1:
+                text += f" [{_write(stat['low'], how)}, {_write(stat['high'], how)}]"
+            return text
+    labels = [entry["label"] for entry in data["controllers"]]
+    raise KeyError(f"docs/results/benchmark-{env}.json has no controller {controller!r}: {labels}")
+
+
+def time_to_floor(recipe: str, fraction: float, results: Path = RESULTS) -> dict[str, str]:
+    """The median time to a fraction of the drag floor: ``median``, ``low``, ``high``, ``reached``."""
+    data = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")
+    entry = data["summary"][f"{fraction:g}"]
+    reached = entry["runs"] - entry.get("not_reached", 0)
+    return {
+        "median": clock(entry["median"]),
+        "low": clock(entry["low"]),
+        "high": clock(entry["high"]),
+        "reached": f"{reached} of {entry['runs']}",
+    }
+
+
+def setup_figures(results: Path = RESULTS) -> dict[str, Any]:
+    """The set-up's times on a fresh machine and a second time, and its steps as a table."""
+    data = _load(results / "setup.json")
+    rows = ["| step | fresh machine | second run |", "| --- | --- | --- |"]
+    rows += [
+        f"| {s['step']} | {clock(s['fresh_seconds'])} | {s['second_run']} |" for s in data["steps"]
+    ]
+    return {
+        "fresh": clock(data["setup_seconds"] + data["debian_packages_seconds"]),
+        "debian": clock(data["debian_packages_seconds"]),
+        "without_debian": clock(data["setup_seconds"]),
+        "second": clock(data["setup_second_run_seconds"]),
+        "ci": clock(data["ci_seconds"]),
+        "ci_second": clock(data["ci_second_run_seconds"]),
+        "measured_on": data["measured_on"],
+        "table": "\n".join(rows),
+    }
+
+
+def define_env(env: Any) -> None:
+    """mkdocs-macros' entry point: the figures as variables, the look-ups as macros."""
+    env.variables["shipped"] = shipped()
+    env.variables["setup"] = setup_figures()
+    env.macro(score)
+    env.macro(time_to_floor)
+    env.filter(clock)
+    env.filter(thousands)

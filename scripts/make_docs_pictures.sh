@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Remake the documentation's flow pictures on the real solvers (preCICE, OpenFOAM, deal.II):
+#   docs/assets/wake.mp4, wake.png   the jet cylinder's wake, uncontrolled and under the
+#                                    shipped policy, side by side (home page)
+#   docs/assets/field-*.png          each tutorial's field snapshot (tutorial pages)
+# Usage: bash scripts/make_docs_pictures.sh [wake|snapshots|all]   (default: all)
+# EPISODE_TIME (default 2) sets the wake video's simulated seconds; DOUBLE=1 makes the
+# snapshots on the test double instead, to try the script on a machine without solvers
+# (the pages say their pictures are the real solvers': do not publish those).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-.venv/bin/python}
+GP=${GYMPRECICE:-.venv/bin/gymprecice}
+EPISODE_TIME=${EPISODE_TIME:-2}
+what=${1:-all}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+mkdir -p docs/assets
+
+if [[ $what == wake || $what == all ]]; then
+    # the same start (seed 0) for both runs; compare puts them side by side
+    "$GP" baseline jet-cylinder-fast --episode-time "$EPISODE_TIME" --out "$work/base" --video
+    "$GP" evaluate jet-cylinder-fast --policy shipped --episode-time "$EPISODE_TIME" \
+        --out "$work/shipped" --video
+    "$GP" compare "$work/base" "$work/shipped" --out "$work/compare" \
+        --video docs/assets/wake.mp4
+    "$PY" scripts/docs_pictures.py still docs/assets/wake.mp4 docs/assets/wake.png --stack 2
+fi
+
+if [[ $what == snapshots || $what == all ]]; then
+    double=()
+    [[ ${DOUBLE:-0} == 1 ]] && double=(--double)
+    while read -r env name steps; do
+        "$PY" scripts/docs_pictures.py snapshot "$env" "docs/assets/field-$name.png" \
+            --steps "$steps" "${double[@]}"
+    done <<'EOF'
+gymprecice/Quickstart-v0 quickstart 8
+gymprecice/JetCylinderFast-v0 jet-cylinder 8
+gymprecice/RotatingCylinderFast-v0 rotating-cylinder 8
+gymprecice/PerpendicularFlapFast-v0 perpendicular-flap 4
+gymprecice/HeatedPlateFast-v0 heated-plate 4
+EOF
+fi

@@ -1,0 +1,160 @@
+"""The project's import structure: no import circle, no private name across modules.
+
+Read from the source of every distribution under ``packages/*/src`` (nothing is
+imported): a module's imports, at its top, inside a function or under
+``if TYPE_CHECKING:`` (a circle of types is still a circle of the design), are its
+arrows. One kind of import draws none: a module's import of a name from a package that
+contains it (the package's face, its ``__init__``, which imports its own modules). A circle is a set of modules that import
+each other in a loop; a private name is one with a single leading underscore
+(``_lookup``, a ``_private`` module), imported from another module.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _modules(roots: list[Path]) -> dict[str, tuple[Path, bool]]:
+    """Every module under ``roots``: dotted name -> (file, whether it is a package)."""
+    found = {}
+    for root in roots:
+        for path in sorted(root.rglob("*.py")):
+            parts = list(path.relative_to(root).with_suffix("").parts)
+            package = parts[-1] == "__init__"
+            if package:
+                parts = parts[:-1]
+            if parts and all(part.isidentifier() for part in parts):
+                found[".".join(parts)] = (path, package)
+    return found
+
+
+def _private(name: str) -> bool:
+    return any(p.startswith("_") and not p.startswith("__") for p in name.split("."))
+
+
+def _imports(tree: ast.AST) -> Iterator[ast.Import | ast.ImportFrom]:
+    """Every import statement of the module, wherever it stands."""
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            yield node
+
+
+def _structure(
+    modules: dict[str, tuple[Path, bool]], root: Path = ROOT
+) -> tuple[dict[str, set[str]], list[str]]:
+    """The arrows between ``modules`` and the private names imported across them (each
+    said with its file, relative to ``root``, and line)."""
+    tops = {name.split(".")[0] for name in modules}
+    arrows: dict[str, set[str]] = {name: set() for name in modules}
+    private: list[str] = []
+    for name, (path, package) in modules.items():
+        here = name if package else name.rpartition(".")[0]
+        for node in _imports(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                targets = [(a.name, None) for a in node.names]
+            else:
+                base = (
+                    here.split(".")[: len(here.split(".")) - node.level + 1] if node.level else []
+                )
+                source = ".".join([*base, node.module] if node.module else base)
+                targets = [(source, a.name) for a in node.names]
+            for source, imported in targets:
+                if source.split(".")[0] not in tops:
+                    continue
+                full = f"{source}.{imported}" if imported else source
+                target = full if full in modules else source
+                where = f"{path.relative_to(root)}:{node.lineno}"
+                if _private(full) and not name.startswith(source + ".") and target != name:
+                    private.append(f"{where} imports {full}")
+                if target in modules and not (modules[target][1] and name.startswith(target + ".")):
+                    arrows[name].add(target)
+    return arrows, private
+
+
+def _circles(arrows: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected sets of more than one module (Tarjan, without recursion)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    circles: list[list[str]] = []
+    for start in arrows:
+        if start in index:
+            continue
+        work = [(start, iter(sorted(arrows[start])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(arrows.get(child, ())))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                members = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    members.append(member)
+                    if member == node:
+                        break
+                if len(members) > 1:
+                    circles.append(sorted(members))
+    return circles
+
+
+@pytest.fixture(scope="module")
+def structure() -> tuple[dict[str, set[str]], list[str]]:
+    roots = sorted(p for p in (ROOT / "packages").glob("*/src") if p.is_dir())
+    assert roots, "no packages/*/src found"
+    return _structure(_modules(roots))
+
+
+def test_no_import_circle(structure):
+    arrows, _ = structure
+    circles = _circles(arrows)
+    assert not circles, "modules that import each other in a loop: " + "; ".join(
+        " <-> ".join(c) for c in circles
+    )
+
+
+def test_no_private_name_imported_across_modules(structure):
+    _, private = structure
+    assert not private, "private names imported from another module (make them public): " + (
+        "; ".join(private)
+    )
+
+
+def test_the_checks_can_fail(tmp_path):
+    """A circle and a private import, written on purpose, are both found."""
+    package = tmp_path / "src" / "pkg"
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "a.py").write_text("from pkg.b import helper\n")
+    (package / "b.py").write_text("def helper(): ...\ndef later():\n    from pkg import a\n")
+    (package / "c.py").write_text("from pkg.b import _hidden\n")
+    (package / "d.py").write_text("from pkg import c\n")  # a package's face: no arrow to it
+    (package / "e.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from pkg.f import F\n"
+    )
+    (package / "f.py").write_text("from pkg.e import E\n")
+    arrows, private = _structure(_modules([tmp_path / "src"]), tmp_path)
+    assert sorted(_circles(arrows)) == [["pkg.a", "pkg.b"], ["pkg.e", "pkg.f"]]
+    assert private == ["src/pkg/c.py:1 imports pkg.b._hidden"]
+    assert arrows["pkg.d"] == {"pkg.c"}
