@@ -379,9 +379,9 @@ def test_unknown_names_other_actuators_and_wrong_shapes_are_refused(tiny, tmp_pa
 
 def _missing() -> list[str]:
     """What the real stack lacks here (empty when preCICE, OpenFOAM and the adapter are)."""
-    from tests.test_tutorials_real_solvers import _missing as missing
+    from gymprecice_openfoam.testing import missing_coupled_stack
 
-    return missing()
+    return missing_coupled_stack("pimpleFoam")
 
 
 @pytest.mark.precice
