@@ -3,13 +3,15 @@
 The plugin (``plugin.py``) registers each row with ``register(id, entry_point,
 card=card)``, the public route every environment package takes: ``gymprecice train``,
 ``evaluate``, ``benchmark`` and the other lab commands (``gymprecice-lab``) read these
-cards and nothing else of the tutorials. Every field a command reads is written out here,
-also where it equals the card's default, so that the table alone says how the lab treats
-each env. Kept free of plugin machinery and of anything heavy: ``plugin.py`` is loaded on
+cards and nothing else of the tutorials. Every field a command reads is written out here
+(the cylinders' shared fields once, in ``_CYLINDER``), also where it equals the card's
+default, so that the table alone says how the lab treats each env. Kept free of plugin machinery and of anything heavy: ``plugin.py`` is loaded on
 every ``import gymprecice``.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 from gymprecice.card import EnvCard, Reference
 
@@ -32,21 +34,28 @@ _CYLINDER_CHECKS = ("pyprecice", "openfoam", "blockmesh", "decomposepar", "mpiru
 _ONE_RANK_CHECKS = ("pyprecice", "openfoam", "blockmesh")
 _FLAP_CHECKS = ("pyprecice", "openfoam", "deal.ii", "elasticity")
 
+#: what every cylinder's card says alike: its force coefficients, the lift as the signal a
+#: classical law feeds back, the shipped policies, the test double, recipe episodes, 10 s
+#: evaluations and forcing near the shedding frequency (each row adds or overrides)
+_CYLINDER = EnvCard(
+    metrics=("Cd", "Cl"),
+    feedback_signal="Cl",
+    policies=POLICIES,
+    double=True,
+    episode_time=True,
+    rollout_time=10.0,
+    open_loop_frequency=3.0,
+)
+
 #: ``(id, "module:Class", lab card)`` of every tutorial environment
 ENVIRONMENTS: tuple[tuple[str, str, EnvCard], ...] = (
     (
         "gymprecice/JetCylinder-v0",
         "gymprecice_tutorials.jet_cylinder.environment:JetCylinderEnv",
-        EnvCard(
+        replace(
+            _CYLINDER,
             name="jet-cylinder",
             description="two synthetic jets on a cylinder at Re = 100 (Rabault et al. 2019)",
-            metrics=("Cd", "Cl"),
-            feedback_signal="Cl",
-            policies=POLICIES,
-            double=True,
-            episode_time=True,
-            rollout_time=10.0,
-            open_loop_frequency=3.0,
             action_unit="m³/s",
             action_bound=2.5e-4,
             solver_checks=_CYLINDER_CHECKS,
@@ -56,16 +65,10 @@ ENVIRONMENTS: tuple[tuple[str, str, EnvCard], ...] = (
     (
         "gymprecice/RotatingCylinder-v0",
         "gymprecice_tutorials.rotating_cylinder.environment:RotatingCylinderEnv",
-        EnvCard(
+        replace(
+            _CYLINDER,
             name="rotating-cylinder",
             description="a rotating cylinder at Re = 100, the action is its angular velocity",
-            metrics=("Cd", "Cl"),
-            feedback_signal="Cl",
-            policies=POLICIES,
-            double=True,
-            episode_time=True,
-            rollout_time=10.0,
-            open_loop_frequency=3.0,
             action_unit="rad/s",
             action_bound=5.0,
             solver_checks=_CYLINDER_CHECKS,
@@ -75,20 +78,14 @@ ENVIRONMENTS: tuple[tuple[str, str, EnvCard], ...] = (
     (
         "gymprecice/JetCylinderFast-v0",
         "gymprecice_tutorials.fast_cases:JetCylinderFastEnv",
-        EnvCard(
+        replace(
+            _CYLINDER,
             name="jet-cylinder-fast",
             description="the jet cylinder's training case: coarse mesh, 1 s episodes from "
             "eight start snapshots, Rabault's reward and jet bound (PPO reaches 95 % of its "
             "drag floor in minutes on 2 cores: docs/benchmark.md)",
-            metrics=("Cd", "Cl"),
             held_out_starts=True,
-            feedback_signal="Cl",
             reference=FAST_CYLINDER_FLOOR,
-            policies=POLICIES,
-            double=True,
-            episode_time=True,
-            rollout_time=10.0,
-            open_loop_frequency=3.0,
             action_unit="m³/s",
             action_bound=2.5e-5,
             solver_checks=_ONE_RANK_CHECKS,
@@ -97,18 +94,12 @@ ENVIRONMENTS: tuple[tuple[str, str, EnvCard], ...] = (
     (
         "gymprecice/RotatingCylinderFast-v0",
         "gymprecice_tutorials.fast_cases:RotatingCylinderFastEnv",
-        EnvCard(
+        replace(
+            _CYLINDER,
             name="rotating-cylinder-fast",
             description="the rotating cylinder on the jet cylinder's training case",
-            metrics=("Cd", "Cl"),
             held_out_starts=True,
-            feedback_signal="Cl",
             reference=FAST_CYLINDER_FLOOR,
-            policies=POLICIES,
-            double=True,
-            episode_time=True,
-            rollout_time=10.0,
-            open_loop_frequency=3.0,
             action_unit="rad/s",
             action_bound=2.0,
             solver_checks=_ONE_RANK_CHECKS,
@@ -117,17 +108,12 @@ ENVIRONMENTS: tuple[tuple[str, str, EnvCard], ...] = (
     (
         "gymprecice/Quickstart-v0",
         "gymprecice_tutorials.quickstart.environment:QuickstartEnv",
-        EnvCard(
+        replace(
+            _CYLINDER,
             name="quickstart",
             description="the jet cylinder on a coarse mesh with short episodes (minutes on "
             "2 cores)",
-            metrics=("Cd", "Cl"),
-            feedback_signal="Cl",
-            policies=POLICIES,
-            double=True,
-            episode_time=True,
             rollout_time=2.0,
-            open_loop_frequency=3.0,
             action_unit="m³/s",
             action_bound=2.5e-4,
             solver_checks=_ONE_RANK_CHECKS,
