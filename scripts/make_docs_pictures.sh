@@ -3,7 +3,9 @@
 #   docs/assets/wake.mp4, wake.png   the jet cylinder's wake, uncontrolled and under the
 #                                    shipped policy, side by side (home page)
 #   docs/assets/field-*.png          each tutorial's field snapshot (tutorial pages)
-# Usage: bash scripts/make_docs_pictures.sh [wake|snapshots|all]   (default: all)
+#   docs/assets/sketch-*.png         each tutorial's case sketch (tutorial pages), drawn by
+#                                    `gymprecice sketch` from the case files (blockMesh)
+# Usage: bash scripts/make_docs_pictures.sh [wake|snapshots|sketches|all]   (default: all)
 # EPISODE_TIME (default 2) sets the wake video's simulated seconds; DOUBLE=1 makes the
 # snapshots on the test double instead, to try the script on a machine without solvers
 # (the pages say their pictures are the real solvers': do not publish those).
@@ -39,5 +41,19 @@ gymprecice/JetCylinderFast-v0 jet-cylinder 8
 gymprecice/RotatingCylinderFast-v0 rotating-cylinder 8
 gymprecice/PerpendicularFlapFast-v0 perpendicular-flap 4
 gymprecice/HeatedPlateFast-v0 heated-plate 4
+gymprecice/TwoFlapsFast-v0 two-flaps 4
+EOF
+fi
+
+if [[ $what == sketches || $what == all ]]; then
+    while read -r env name; do
+        "$GP" sketch "$env" --out "docs/assets/sketch-$name.png"
+    done <<'EOF'
+quickstart quickstart
+jet-cylinder-fast jet-cylinder
+rotating-cylinder-fast rotating-cylinder
+perpendicular-flap-fast perpendicular-flap
+heated-plate-fast heated-plate
+two-flaps-fast two-flaps
 EOF
 fi

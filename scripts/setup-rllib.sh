@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A second virtual environment, .venv-rllib, for RLlib: ray[rllib] 2.60 pins gymnasium 1.2.2,
 # older than the Gymnasium of .venv, so it cannot share .venv. tests/test_rllib.py runs here
-# (it skips in .venv).
+# (it skips in .venv), and so does tests/test_rllib_multiagent.py, RLlib's multi-agent API on
+# a PettingZoo env (PettingZoo 1.27 asks only gymnasium>=1.0, the version .venv has too).
 #
 #   bash scripts/setup-rllib.sh      # idempotent: a second run takes seconds
 #
@@ -12,6 +13,7 @@ cd "$(dirname "$0")/.."
 
 TORCH_VERSION="${GYMPRECICE_TORCH_VERSION:-2.13.0}"
 RAY_VERSION="${GYMPRECICE_RLLIB_RAY_VERSION:-2.60.0}"
+PETTINGZOO_VERSION="${GYMPRECICE_PETTINGZOO_VERSION:-1.27.0}"
 PYTHON="${PYTHON:-python3}"
 VENV=.venv-rllib
 START=$SECONDS
@@ -22,10 +24,10 @@ fi
 PY="$VENV/bin/python"
 PIP="$PY -m pip"
 STAMP="$VENV/.gymprecice-setup"
-WANT="torch==${TORCH_VERSION} ray[rllib]==${RAY_VERSION} tutorials[train] $(cat packages/*/pyproject.toml | cksum)"
+WANT="torch==${TORCH_VERSION} ray[rllib]==${RAY_VERSION} pettingzoo==${PETTINGZOO_VERSION} tutorials[train] $(cat packages/*/pyproject.toml | cksum)"
 
 if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ] \
-  && "$PY" -c "import torch, ray.rllib, gymprecice, gymprecice_tutorials, stable_baselines3, pytest" >/dev/null 2>&1; then
+  && "$PY" -c "import torch, ray.rllib, pettingzoo, gymprecice, gymprecice_tutorials, stable_baselines3, pytest" >/dev/null 2>&1; then
   echo "setup-rllib: $VENV up to date ($((SECONDS - START)) s)"
   exit 0
 fi
@@ -38,6 +40,7 @@ fi
 $PIP install -q --disable-pip-version-check \
   "torch==${TORCH_VERSION}" \
   "ray[rllib]==${RAY_VERSION}" \
+  "pettingzoo==${PETTINGZOO_VERSION}" \
   -e packages/gymprecice-core \
   -e packages/gymprecice-openfoam \
   -e packages/gymprecice-dealii \
@@ -45,6 +48,6 @@ $PIP install -q --disable-pip-version-check \
   -e packages/gymprecice-lab \
   -e "packages/gymprecice-tutorials[train]" \
   pytest pytest-timeout
-"$PY" -c "import gymnasium, ray, torch; print('setup-rllib: ray', ray.__version__, 'gymnasium', gymnasium.__version__, 'torch', torch.__version__)"
+"$PY" -c "import gymnasium, pettingzoo, ray, torch; print('setup-rllib: ray', ray.__version__, 'gymnasium', gymnasium.__version__, 'pettingzoo', pettingzoo.__version__, 'torch', torch.__version__)"
 echo "$WANT" >"$STAMP"
 echo "setup-rllib: $VENV ready in $((SECONDS - START)) s"

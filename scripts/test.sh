@@ -19,6 +19,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PYTEST=(.venv/bin/python -m pytest)
+# One math thread per process: the two workers and the solvers already fill both cores,
+# and PyTorch's second thread only spins against them (a tiny SAC update took 5.5 CPU-s
+# on two threads and 0.3 on one). Real solvers run one MPI rank each, without OpenMP.
+export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 lint() {
   .venv/bin/ruff check .
   .venv/bin/ruff format --check .
@@ -48,7 +52,7 @@ bash scripts/setup.sh stack
 status=0
 if [ -x .venv-rllib/bin/python ]; then
   GYMPRECICE_DURATIONS="$OUT/durations-2-rllib.json" \
-    .venv-rllib/bin/python -m pytest -q tests/test_rllib.py || status=$?
+    .venv-rllib/bin/python -m pytest -q tests/test_rllib.py tests/test_rllib_multiagent.py || status=$?
 fi
 GYMPRECICE_TIER=rest GYMPRECICE_DURATIONS="$OUT/durations-3-rest.json" \
   "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"} || status=$?

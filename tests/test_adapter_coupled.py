@@ -91,7 +91,12 @@ def _case(tmp_path: Path, library: str, *, max_time: float = 0.1, variant=None, 
         "precice": {"library": library},
         "physics_simulation_engine": {
             "solvers": {
-                "fluid": {"kind": "command", "participant": "Fluid", "options": {"argv": argv}}
+                "fluid": {
+                    "kind": "command",
+                    "participant": "Fluid",
+                    # the partner needs no plugin: skip their scan, most of its start-up
+                    "options": {"argv": argv, "env": {"GYMPRECICE_DISABLE_PLUGINS": "1"}},
+                }
             }
         },
         "controller": {

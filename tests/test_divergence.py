@@ -118,11 +118,17 @@ def test_divergence_is_not_a_failure_but_a_kill_in_the_same_run_is(case, tmp_pat
 
 
 def test_a_running_solver_is_watched_and_stopped_when_its_log_shows_divergence(case, tmp_path):
-    """The watch sees a solver that is still running (no crash needed)."""
+    """The watch sees a solver that is still running (no crash needed).
+
+    The pattern is the solver's "window 3" line: it prints it before it sends window 4's
+    data, which the second step waits for, and after window 3's data, which only the
+    second step sends. So the line is in the log at the end of step 2 and not of step 1,
+    however loaded the machine. (Its "window 4" line may come after step 2 returned.)
+    """
     _edit(
         case,
         lambda c: c["physics_simulation_engine"]["solvers"]["fluid"]["options"].update(
-            divergence_patterns=[r"window 4 "]
+            divergence_patterns=[r"window 3 "]
         ),
     )
     env = CylinderEnv(str(case), 0, run_root=str(tmp_path / "runs"))
@@ -130,7 +136,7 @@ def test_a_running_solver_is_watched_and_stopped_when_its_log_shows_divergence(c
         env.reset(seed=0)
         outcomes = [env.step(np.array([0.0], dtype=np.float32)) for _ in range(2)]
         assert [o[2] for o in outcomes] == [False, True]
-        assert "window 4" in outcomes[1][4]["diverged"]["evidence"]
+        assert "window 3" in outcomes[1][4]["diverged"]["evidence"]
         assert outcomes[1][1] == PENALTY
         env.reset()  # and nothing is left of the stopped episode to get in the way
         assert not env.step(np.array([0.0], dtype=np.float32))[2]

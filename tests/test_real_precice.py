@@ -69,7 +69,12 @@ class Procs:
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
 
     def start(self, argv: list[str], name: str) -> subprocess.Popen[bytes]:
-        env = {**os.environ, "GYMPRECICE_DISABLE_PLUGINS": "1"}
+        # the double waits forever for a partner that is gone, as preCICE does
+        env = {
+            **os.environ,
+            "GYMPRECICE_DISABLE_PLUGINS": "1",
+            "GYMPRECICE_FAKE_PRECICE_PARTNER_LOSS": "hang",
+        }
         with (
             (self.cwd / f"{name}.out").open("wb") as out,
             (self.cwd / f"{name}.err").open("wb") as err,

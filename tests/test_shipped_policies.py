@@ -75,6 +75,29 @@ def _fails(proc: subprocess.CompletedProcess[str]) -> str:
     return lines[0]
 
 
+def _refused_here(cwd: Path, *args: str, policies: Path | None = None, monkeypatch, capsys) -> str:
+    """:func:`_fails` for a command refused before it runs anything, run in this process
+    (a process of its own would spend seconds importing PyTorch to print one line); the
+    exit status a process would have is the one checked."""
+    from gymprecice.cli import main
+
+    monkeypatch.chdir(cwd)
+    monkeypatch.delenv(POLICIES_DIR_ENV, raising=False)
+    if policies is not None:
+        monkeypatch.setenv(POLICIES_DIR_ENV, str(policies))
+    capsys.readouterr()
+    try:
+        status, message = main(list(args)), ""
+    except SystemExit as exc:
+        code = exc.code
+        status, message = (code, "") if isinstance(code, int) else (1, f"{code}\n")
+    captured = capsys.readouterr()
+    assert status != 0, captured.out
+    lines = (captured.err + message).strip().splitlines()
+    assert len(lines) == 1, captured.err + message
+    return lines[0]
+
+
 def _actions(run: Path) -> np.ndarray:
     with (run / "history.csv").open() as handle:
         return np.array([float(r["action_0"]) for r in csv.DictReader(handle)])
@@ -182,7 +205,8 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         )
     )
     assert "shipped 'tiny'" in out
-    _ok(_cli(root, "ship-policy", "train", policies=policies))  # named after its env
+    # named after its env (here, not by a second command: the first ran the command line)
+    ship_policy(root / "train", directory=policies)
     return {"root": root, "policies": policies}
 
 
@@ -322,24 +346,23 @@ def test_transfer_to_another_env_keeps_the_training_bound(tiny, tmp_path):
         venv.close()
 
 
-def test_unknown_names_other_actuators_and_wrong_shapes_are_refused(tiny, tmp_path):
+def test_unknown_names_other_actuators_and_wrong_shapes_are_refused(
+    tiny, tmp_path, monkeypatch, capsys
+):
     from stable_baselines3 import PPO
 
     root, policies = tiny["root"], tiny["policies"]
     common = ["--double", "--episode-time", "0.1", "--out", str(tmp_path / "x")]
-    line = _fails(
+    line = _fails(  # as typed: one line from a process of its own
         _cli(root, "evaluate", "quickstart", *common, "--policy", "nope", policies=policies)
     )
     assert "no shipped policy 'nope'" in line and "quickstart, tiny" in line
-    line = _fails(
-        _cli(
-            root, "evaluate", "rotating-cylinder", *common, "--policy", "shipped", policies=policies
-        )
+    here = {"policies": policies, "monkeypatch": monkeypatch, "capsys": capsys}
+    line = _refused_here(
+        root, "evaluate", "rotating-cylinder", *common, "--policy", "shipped", **here
     )
     assert "no policy is shipped for rotating-cylinder" in line and "tiny" in line
-    line = _fails(
-        _cli(root, "evaluate", "rotating-cylinder", *common, "--policy", "tiny", policies=policies)
-    )
+    line = _refused_here(root, "evaluate", "rotating-cylinder", *common, "--policy", "tiny", **here)
     assert "has no max_flow_rate" in line
     # a model of another observation: refused at evaluation and at shipping
     other = tmp_path / "other"
@@ -347,8 +370,15 @@ def test_unknown_names_other_actuators_and_wrong_shapes_are_refused(tiny, tmp_pa
     PPO("MlpPolicy", "Pendulum-v1", policy_kwargs={"net_arch": [8]}, device="cpu").save(
         other / "model.zip"
     )
-    line = _fails(
-        _cli(root, "evaluate", "quickstart", *common, "--policy", str(other / "model.zip"))
+    line = _refused_here(
+        root,
+        "evaluate",
+        "quickstart",
+        *common,
+        "--policy",
+        str(other / "model.zip"),
+        monkeypatch=monkeypatch,
+        capsys=capsys,
     )
     assert "observations of shape (3,)" in line and "(151,)" in line
     shutil.copy(root / "train" / "manifest.json", other / "manifest.json")

@@ -829,11 +829,18 @@ class Processes:
         self.cwd = cwd
         self.procs: list[subprocess.Popen[bytes]] = []
 
-    def start(self, argv: list[str], log: str) -> subprocess.Popen[bytes]:
+    def start(
+        self, argv: list[str], log: str, env: dict[str, str] | None = None
+    ) -> subprocess.Popen[bytes]:
         out = (self.cwd / f"{log}.out").open("wb")
         err = (self.cwd / f"{log}.err").open("wb")
         proc = subprocess.Popen(
-            argv, cwd=self.cwd, stdout=out, stderr=err, env=_env(), start_new_session=True
+            argv,
+            cwd=self.cwd,
+            stdout=out,
+            stderr=err,
+            env={**_env(), **(env or {})},
+            start_new_session=True,
         )
         out.close()
         err.close()
@@ -973,10 +980,12 @@ def _alive_after(proc: subprocess.Popen[bytes], seconds: float) -> bool:
 def test_survivor_blocks_forever_when_partner_dies(
     tmp_path: Path, procs: Processes, death: str
 ) -> None:
+    """With ``PARTNER_LOSS=hang`` the double waits as preCICE 3.4.1 does: forever."""
     cfg = case_config("fake_cylinder", tmp_path, max_time=10.0)
     ctrl = procs.start(
         partner_command(cfg, "Controller", flow="gymprecice.testing.flows:JetController"),
         "controller",
+        env={"GYMPRECICE_FAKE_PRECICE_PARTNER_LOSS": "hang"},
     )
     flags: dict[str, Any] = {}
     if death == "sigkill":
@@ -1009,6 +1018,39 @@ def test_survivor_blocks_forever_when_partner_dies(
         os.killpg(fluid.pid, signal.SIGCONT)
     os.killpg(ctrl.pid, signal.SIGKILL)
     assert ctrl.wait(10) == -signal.SIGKILL
+
+
+def test_a_solver_left_alone_gives_up_when_its_controller_is_killed(
+    tmp_path: Path, procs: Processes
+) -> None:
+    """The controller is SIGKILLed mid-run (an env killed with its job): the solver on the
+    double waits its ``PARTNER_LOSS`` seconds, then ends non-zero with preCICE's message,
+    instead of waiting for hours. Cost: about 6 s (the default 5 s wait)."""
+    cfg = case_config("fake_cylinder", tmp_path, max_time=10.0)
+    flow = "gymprecice.testing.flows:JetController"
+    ctrl = procs.start(partner_command(cfg, "Controller", flow=flow, crash_at_window=3), "ctrl")
+    fluid = procs.start(partner_command(cfg, "Fluid"), "fluid")
+    assert ctrl.wait(60) == -signal.SIGKILL
+    killed = time.monotonic()
+    status = fluid.wait(30)  # fails the test (TimeoutExpired) where it would wait on
+    waited = time.monotonic() - killed
+    assert status == 1, procs.err("fluid")
+    assert 3.0 < waited < 30.0  # it waited, as preCICE does, before it gave up
+    said = procs.log("fluid") + procs.err("fluid")
+    assert '"Controller" (using sockets) failed' in said
+    assert "This often means that the other participant exited" in said
+    assert "ERROR:" in procs.log("fluid")  # logged as preCICE logs an error
+
+
+def test_partner_loss_setting_is_checked(monkeypatch: pytest.MonkeyPatch) -> None:
+    from gymprecice.testing.fake_precice.errors import partner_loss_wait
+
+    for text, seconds in (("hang", None), ("0.5", 0.5), ("0", 0.0)):
+        monkeypatch.setattr(fp, "PARTNER_LOSS", text)
+        assert partner_loss_wait() == seconds
+    monkeypatch.setattr(fp, "PARTNER_LOSS", "soon")
+    with pytest.raises(fp.PreciceError, match="GYMPRECICE_FAKE_PRECICE_PARTNER_LOSS='soon'"):
+        partner_loss_wait()
 
 
 def test_config_mismatch_between_participants_is_reported(

@@ -13,6 +13,7 @@ import io
 import subprocess
 import sys
 import tarfile
+import threading
 from pathlib import Path
 
 import pytest
@@ -147,6 +148,46 @@ def test_failed_build_shows_the_error_lines_and_skips_what_requires_it(prefix, t
     assert "exit status 2" in results[0].failure
     assert "gymprecice install base" in results[0].failure
     assert dependent.calls == [] and stamp_of(broken) is None
+
+
+def test_steps_that_need_nothing_of_each_other_build_side_by_side(prefix, tmp_path):
+    """After what they require, independent steps build at once (two meet inside their
+    builds, which one at a time never do), each one's lines name it, and the results keep
+    the steps' order; by default they build one after the other."""
+    events: list[str] = []
+
+    def step(name: str, meet: threading.Barrier | None, *requires: str) -> InstallStep:
+        def build(ctx: BuildContext) -> None:
+            events.append(f"start {name}")
+            ctx.say("[install]   compiling")
+            if meet is not None:
+                meet.wait(timeout=10)  # BrokenBarrierError: the other one never came
+            (ctx.prefix / "lib").mkdir(parents=True, exist_ok=True)
+            (ctx.prefix / "lib" / name).touch()
+            events.append(f"end {name}")
+
+        def built(p: Path) -> Path | None:
+            return p / "lib" / name if (p / "lib" / name).exists() else None
+
+        return InstallStep(name, f"{name} 1.0", "1.0", build, built, requires=requires)
+
+    meet = threading.Barrier(2)
+    steps = [step("lib", None), step("left", meet, "lib"), step("right", meet, "lib")]
+    lines: list[str] = []
+    results = install(steps, jobs=2, at_once=2, say=lines.append)
+    assert [(r.step.name, r.status) for r in results] == [
+        ("lib", "built"),
+        ("left", "built"),
+        ("right", "built"),
+    ]
+    assert events[:2] == ["start lib", "end lib"]  # what they require comes first
+    assert set(events[2:4]) == {"start left", "start right"}  # then both at once
+    assert "[install]   left: compiling" in lines and "[install]   right: compiling" in lines
+
+    events.clear()
+    one_at_a_time = [step("lib2", None), step("a", None, "lib2"), step("b", None, "lib2")]
+    install(one_at_a_time, jobs=2, say=lambda _line: None)
+    assert events == ["start lib2", "end lib2", "start a", "end a", "start b", "end b"]
 
 
 def test_found_elsewhere_is_used_not_rebuilt(prefix, tmp_path):

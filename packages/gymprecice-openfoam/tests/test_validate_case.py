@@ -218,3 +218,42 @@ def test_geometry_of_a_mesh_preciceDict_does_not_use_names_both_meshes(tmp_path:
         )
         is None
     )
+
+
+def _tutorial_block_mesh_dicts() -> list[bytes]:
+    """Every blockMeshDict the tutorials ship or write, and the test case's."""
+    root = Path(__file__).resolve().parents[2] / "gymprecice-tutorials" / "src"
+    found = [p.read_bytes() for p in sorted(root.rglob("blockMeshDict"))]
+    return [*found, testing.cylinder_block_mesh_dict().encode()]
+
+
+def test_block_mesh_patch_names_reads_every_patch_of_the_shipped_cases() -> None:
+    """The names in file order, as blockMesh makes the patches (foamlib, which the check
+    used before, takes tens of seconds on these files: their blocks)."""
+    from gymprecice_openfoam.checks import block_mesh_patch_names
+
+    texts = _tutorial_block_mesh_dicts()
+    assert block_mesh_patch_names(texts[-1]) == [
+        "inlet", "outlet", "walls", "cylinder", "jet1", "jet2", "frontAndBack"
+    ]  # fmt: skip
+    for data in texts:
+        names = block_mesh_patch_names(data)
+        assert names and len(set(names)) == len(names)
+        assert all(f"{name}\n" in data.decode() or f"{name} " in data.decode() for name in names)
+
+
+@pytest.mark.parametrize(
+    ("text", "names"),
+    [
+        (b"boundary ( inlet { type patch; faces ((0 1 2 3)); } wall {} );", ["inlet", "wall"]),
+        (b"// boundary ( fake {} );\nboundary ( /* old {} */ real { type wall; } );", ["real"]),
+        (b'boundary ( #include "patches" );', None),  # only blockMesh expands it
+        (b"patches ( patch inlet ((0 1 2 3)) );", None),  # old style: blockMesh will tell
+        (b"FoamFile { object blockMeshDict; } boundary ();", []),
+        (b"boundary ( inlet { type patch; ", None),  # unbalanced
+    ],
+)
+def test_block_mesh_patch_names_reads_only_a_top_level_boundary_list(text, names) -> None:
+    from gymprecice_openfoam.checks import block_mesh_patch_names
+
+    assert block_mesh_patch_names(text) == names

@@ -29,6 +29,33 @@ def gymprecice_cli() -> Callable[..., str]:
     return run
 
 
+@pytest.fixture
+def gymprecice_refused(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> Callable[..., tuple[int, str]]:
+    """``gymprecice ARGS`` in ``cwd``, run in this process, for a command that is refused
+    before it runs anything: its exit status and its stderr, with the message a
+    ``SystemExit`` carries (which the interpreter prints, exiting with status 1).
+
+    A refusal costs a process of its own a second or more of imports (the lab, and for
+    training and evaluation PyTorch) to print one line; here it costs what the check
+    costs. A command that is not refused runs here too, and its test fails on the status.
+    """
+    from gymprecice.cli import main
+
+    def run(cwd: Path, *args: str) -> tuple[int, str]:
+        monkeypatch.chdir(cwd)
+        capsys.readouterr()  # only this command's output
+        try:
+            status, message = main(list(args)), ""
+        except SystemExit as exc:
+            code = exc.code
+            status, message = (code, "") if isinstance(code, int) else (1, f"{code}\n")
+        return status, capsys.readouterr().err + message
+
+    return run
+
+
 @pytest.fixture(scope="module")
 def ray_cluster():
     """A real Ray cluster on this machine: a head with no CPU and two worker nodes of two

@@ -57,6 +57,12 @@ TINY = [
 ]
 
 
+#: one PPO seed: for what an env brings of its own (its objective, its feedback law); that
+#: every seed is trained and evaluated from every start, the benchmark of ``bench`` shows
+ONE_SEED_TRAINING = [*TINY_TRAINING]
+ONE_SEED_TRAINING[ONE_SEED_TRAINING.index("--seeds") + 1] = "1"
+
+
 def _no_training(argv: list[str]) -> int:
     raise AssertionError(f"nothing may train here, but train ran: {argv}")
 
@@ -158,16 +164,16 @@ def test_figures_are_written(bench) -> None:
 
 
 def test_the_flap_is_benchmarked_on_its_own_objective(tmp_path) -> None:
-    """An env without a drag floor or a feedback law: every seed from each of its three
+    """An env without a drag floor or a feedback law: its seed from each of its three
     held-out gusts, scored by the flap's mean tip displacement, against the open-loop
     baselines."""
     env, objective, starts = "perpendicular-flap-fast", "mean_tip_displacement", 3
     out = tmp_path / "run"
     argv = [
         env,
-        *TINY_TRAINING,
+        *ONE_SEED_TRAINING,
         "--constants",
-        "2",
+        "1",  # one of each kind: choosing the best of a kind, the benchmark of bench shows
         "--amplitudes",
         "1",
         "--frequencies",
@@ -186,7 +192,7 @@ def test_the_flap_is_benchmarked_on_its_own_objective(tmp_path) -> None:
         "sinusoid",
     ]
     ppo = results["controllers"][0]
-    assert np.asarray(ppo["metrics"]["objective"]["scores"]).shape == (2, starts)
+    assert np.asarray(ppo["metrics"]["objective"]["scores"]).shape == (1, starts)
     assert "floor_fraction" not in ppo["metrics"]  # no drag floor off the cylinders
     summary = json.loads((out / "eval/ppo/seed_0/summary.json").read_text())
     assert [e["start"] for e in summary["episodes"]] == list(range(starts))
@@ -206,9 +212,9 @@ def test_the_heated_plate_is_benchmarked_against_its_own_feedback_law(tmp_path) 
     out = tmp_path / "run"
     argv = [
         "heated-plate-fast",
-        *TINY_TRAINING,
+        *ONE_SEED_TRAINING,
         "--constants",
-        "2",
+        "1",
         "--amplitudes",
         "0.5",
         "--frequencies",

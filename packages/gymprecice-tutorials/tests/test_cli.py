@@ -236,7 +236,7 @@ def test_top_level_help_and_every_command_help_format(capsys):
     for command, parser in _commands().items():
         assert command in out, command
         assert parser.format_help(), command
-    assert "95 % of the drag floor" in " ".join(out.split())
+    assert "95 % of their env's reference floor" in " ".join(out.split())
 
 
 def test_rollouts_default_to_the_environments_own_horizon(tmp_path):

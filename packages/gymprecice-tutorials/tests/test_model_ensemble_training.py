@@ -18,9 +18,11 @@ def test_train_with_a_model_ensemble_on_the_double_resumes_with_its_transitions(
     (tmp_path / "me.yml").write_text(
         "model_ensemble:\n  members: 2\n  updates: 2\n  hidden: [16]\n  epochs: 3\n  quorum: 0\n"
     )
+    # 24-action episodes: the first training's 24 steps per env are one episode, so each
+    # env starts its solvers twice, not four times (the transitions do not care)
     train = shlex.split(
         "train jet-cylinder-fast --double --n-envs 2 --n-steps 8 --batch-size 8 --n-epochs 1 "
-        "--episode-time 0.2 --net 16,16 --normalize --hyperparams me.yml --no-progress-bar "
+        "--episode-time 0.6 --net 16,16 --normalize --hyperparams me.yml --no-progress-bar "
         "--out run"
     )
     gymprecice_cli(tmp_path, *train, "--timesteps", "48")

@@ -81,7 +81,15 @@ def test_plain_sb3_order_for_comparison():
             events.append("train")
             super().train(gradient_steps, batch_size)
 
-    model = Journaled("MlpPolicy", vec, learning_starts=10, gradient_steps=3, batch_size=8, seed=0)
+    model = Journaled(
+        "MlpPolicy",
+        vec,
+        learning_starts=10,
+        gradient_steps=3,
+        batch_size=8,
+        policy_kwargs={"net_arch": [8]},  # the order is the question, not the network
+        seed=0,
+    )
     model.learn(40)
     assert events.count("train") == 15
     for i, event in enumerate(events):

@@ -149,16 +149,11 @@ def test_an_env_with_a_feedback_law_of_its_own_is_tuned_over_that_laws_grid(
     ],
 )
 def test_feedback_without_what_its_env_needs_is_refused_leaving_nothing(
-    tmp_path: Path, env, extra, message
+    tmp_path: Path, gymprecice_refused, env, extra, message
 ) -> None:
-    proc = subprocess.run(
-        [sys.executable, "-m", "gymprecice", "feedback", env, "--double", *extra, "--out", "run"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+    argv = ["feedback", env, "--double", *extra, "--out", "run"]
+    status, err = gymprecice_refused(tmp_path, *argv)
+    assert status == 2 and message in err, err
     assert not (tmp_path / "run").exists()
 
 
@@ -183,9 +178,12 @@ def test_a_bad_law_is_reported_before_missing_solvers(tmp_path: Path, monkeypatc
         ("heated-plate", "--feedback-grid", "ki=5,y", "ki= needs comma-separated finite"),
     ],
 )
-def test_bad_grids_are_refused_naming_the_flag(tmp_path: Path, env, flag, value, message) -> None:
-    proc = _cli(tmp_path, env, "--double", f"{flag}={value}", "--out", "sweep")
-    assert proc.returncode != 0 and message in proc.stderr, proc.stderr
+def test_bad_grids_are_refused_naming_the_flag(
+    tmp_path: Path, gymprecice_refused, env, flag, value, message
+) -> None:
+    argv = ["sweep", env, "--double", f"{flag}={value}", "--out", "sweep"]
+    status, err = gymprecice_refused(tmp_path, *argv)
+    assert status != 0 and message in err, err
     assert not (tmp_path / "sweep").exists()
 
 
@@ -254,10 +252,15 @@ def test_two_workers_give_the_one_worker_table_and_a_rerun_keeps_finished_contro
     assert "1 controller(s) x 2 held-out start(s) on 1 worker(s)" in again.stdout
     assert json.loads((tmp_path / "two/sweep.json").read_text()) == tables[1]
 
-    # other rollouts (another episode length) keep nothing
-    other = _cli(tmp_path, *grid[:3], "0.15", *grid[4:], "--out", "two")
+    # other rollouts (another episode length) keep nothing, not even the three controllers
+    # this smaller grid shares with the finished sweep (a feedback gain among them, so that
+    # the feedback signal, which the rollouts also depend on, is the finished sweep's)
+    other_grid = [*grid[:3], "0.15", "--constants", "0", "--amplitudes", "1"]
+    other_grid += ["--frequencies", "3", "--episodes", "2", "--feedback-gains=1"]
+    other = _cli(tmp_path, *other_grid, "--out", "two")
     assert other.returncode == 0, other.stdout + other.stderr
     assert "kept" not in other.stdout
+    assert "3 controller(s) x 2 held-out start(s) on 1 worker(s)" in other.stdout
 
 
 @pytest.mark.timeout(300)

@@ -97,16 +97,20 @@ def test_the_scan_stops_at_the_first_checkpoint_reaching_the_highest_fraction(ru
     assert scan["run"]["reached"]["0.9"] is None
 
 
-def test_bad_input_is_refused_with_the_fix(run: Path) -> None:
-    proc = _cli(run.parent, "time-to-floor", str(run), "--env", "quickstart", "--double")
-    assert proc.returncode == 2
-    assert "needs the lab card field 'reference' of gymprecice/Quickstart-v0" in proc.stderr
-    proc = _cli(run.parent, "time-to-floor", str(run), "--double", "--eval-time", "1")
-    assert proc.returncode == 2 and "leaves no settled flow" in proc.stderr
+def test_bad_input_is_refused_with_the_fix(run: Path, gymprecice_refused) -> None:
+    status, err = gymprecice_refused(
+        run.parent, "time-to-floor", str(run), "--env", "quickstart", "--double"
+    )
+    assert status == 2
+    assert "needs the lab card field 'reference' of gymprecice/Quickstart-v0" in err
+    status, err = gymprecice_refused(
+        run.parent, "time-to-floor", str(run), "--double", "--eval-time", "1"
+    )
+    assert status == 2 and "leaves no settled flow" in err
     empty = run.parent / "empty"
     empty.mkdir()
-    proc = _cli(run.parent, "time-to-floor", str(empty), "--double")
-    assert proc.returncode == 2 and "not a training run" in proc.stderr
+    status, err = gymprecice_refused(run.parent, "time-to-floor", str(empty), "--double")
+    assert status == 2 and "not a training run" in err
 
 
 def test_the_median_over_runs_has_an_interval_that_stays_open_for_runs_never_reaching() -> None:

@@ -1,7 +1,8 @@
 """Two flaps in one channel: the PettingZoo API on the double, the case, the real stack.
 
 The double tests run TwoFlapsFastEnv against gymprecice's preCICE test double and two
-scripted flaps (:mod:`gymprecice_tutorials.two_flaps.double`); the tests marked
+scripted flaps (:mod:`gymprecice_tutorials.two_flaps.double`), rendering included (their
+stand-in fluid and both bent flaps in one frame); the tests marked
 ``precice``/``openfoam``/``dealii`` run the training case with all four participants:
 pimpleFoam, two deal.II ``elasticity`` solids and the controller.
 """
@@ -12,6 +13,7 @@ import os
 import signal
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -19,6 +21,8 @@ pytest.importorskip("pettingzoo")
 
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
+import gymprecice  # noqa: F401  (registers the ids)
+from gymprecice.fields import FIELDS_DIR, read_field_file
 from gymprecice.multiagent import JointEnv
 from gymprecice.processes import kill_recorded_groups
 from gymprecice.stack import stack_which
@@ -30,6 +34,8 @@ from gymprecice_tutorials.two_flaps.fast import EVAL_GUSTS, GUST_STEP, TwoFlapsF
 from gymprecice_tutorials.two_flaps.training_case import fast_case_files
 
 AGENTS = ["upstream", "downstream"]
+#: a frame that shows a field has far more pixel variance than a blank or one-colour one
+VARIANCE_FLOOR = 100.0
 
 
 def _double(tmp_path: Path, **kwargs) -> TwoFlapsFastEnv:
@@ -140,6 +146,110 @@ def test_the_shared_policy_route_stacks_both_agents(tmp_path: Path) -> None:
         env.close()
 
 
+# -- rendering on the double ------------------------------------------------------------------
+
+
+def _files(root: Path) -> set[str]:
+    return {str(p.relative_to(root)) for p in root.rglob("*") if p.is_file()}
+
+
+def _check_frame(env, frame: np.ndarray) -> None:
+    width, height = env.render_size  # a height of None follows the domain
+    assert frame.shape[1:] == (width, 3) and frame.dtype == np.uint8
+    assert frame.shape[0] == (height or frame.shape[0]) and frame.shape[0] % 16 == 0
+    assert frame.var() > VARIANCE_FLOOR
+
+
+def test_the_pettingzoo_env_draws_the_fluid_both_flaps_and_both_slots(tmp_path: Path) -> None:
+    env = _double(tmp_path, render_mode="rgb_array")
+    try:
+        assert env.render_mode == "rgb_array"
+        assert env.metadata["render_fps"] == 10 and "rgb_array" in env.metadata["render_modes"]
+        env.reset(seed=0, options={"split": "eval"})
+        first = env.render()
+        _check_frame(env, first)
+        settings = {"upstream": np.array([1.0], np.float32), "downstream": np.array([-1.0])}
+        env.step(settings)
+        env.step(settings)
+        second = env.render()
+        _check_frame(env, second)
+        assert second.shape == first.shape
+        assert np.abs(second.astype(int) - first.astype(int)).sum() > 0
+        overlay = env._render_overlay()
+        # blowing: up out of the floor at the upstream slot; suction: down into it
+        assert overlay.arrows == [(-1.35, 0.0, 0.0, 0.5), (0.65, 0.5, 0.0, -0.5)]
+        assert "+10.0 m/s blowing" in overlay.text[0] and "-10.0 m/s suction" in overlay.text[1]
+        solvers = env.solver_dirs
+    finally:
+        env.close()
+    fluid = read_field_file(solvers["upstream"] / FIELDS_DIR / "U.npz")
+    assert fluid.points[:, 0].min() == -3.0 and fluid.points[:, 0].max() == 3.0
+    for flap in FLAPS:
+        bent = read_field_file(solvers[flap.solver] / FIELDS_DIR / "displacement.npz")
+        # the frame's step (0.3 s gust, 2 actions), or the window the flap ran ahead to
+        assert 0.5 - 1e-9 <= bent.time <= 0.55 + 1e-9
+        assert np.mean(bent.points[:, 0]) == pytest.approx(flap.x)
+        assert np.abs(bent.displacement[:, 0]).max() > 0
+
+
+def test_without_render_mode_the_scripted_flaps_write_nothing_more(tmp_path: Path) -> None:
+    plain = _double(tmp_path / "plain")
+    rendering = _double(tmp_path / "rendering", render_mode="rgb_array")
+    for env in (plain, rendering):
+        env.reset(seed=0)
+        while env.agents:
+            env.step(_act(env, 0.5))
+        env.close()
+    extra = _files(rendering.run_dir) - _files(plain.run_dir)
+    assert extra == {
+        f"solid-upstream-dealii/{FIELDS_DIR}/U.npz",
+        f"solid-upstream-dealii/{FIELDS_DIR}/displacement.npz",
+        f"solid-downstream-dealii/{FIELDS_DIR}/displacement.npz",
+    }
+    with pytest.warns(UserWarning, match=r"TwoFlapsFastEnv.render\(\) called without"):
+        assert plain.render() is None
+
+
+def test_a_render_mode_the_env_lacks_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match=r"TwoFlapsFastEnv.*render_mode='human'.*\['rgb_array'\]"):
+        _double(tmp_path, render_mode="human")
+
+
+def test_the_joint_env_renders_and_records_a_playable_video(tmp_path: Path) -> None:
+    pytest.importorskip("moviepy", reason="the render extra: gymprecice-core[render]")
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg", reason="gymprecice-core[render]")
+    env = gym.make(
+        "gymprecice/TwoFlapsFast-v0",
+        double=True,
+        run_root=str(tmp_path / "runs"),
+        settle_time=0.3,
+        episode_time=0.3,
+        render_mode="rgb_array",
+    )
+    assert env.render_mode == "rgb_array" and env.metadata["render_fps"] == 10
+    videos = tmp_path / "videos"
+    env = gym.wrappers.RecordVideo(env, str(videos), episode_trigger=lambda _: True)
+    try:
+        env.reset(seed=0)
+        frames = [env.render()]
+        done = False
+        while not done:
+            *_, terminated, truncated, _ = env.step(np.full((2, 1), 0.5, np.float32))
+            done = terminated or truncated
+            if not done:
+                frames.append(env.render())
+    finally:
+        env.close()
+    for frame in frames:
+        _check_frame(env.unwrapped, frame)
+        assert frame.shape == frames[0].shape
+    assert np.abs(frames[-1].astype(int) - frames[0].astype(int)).sum() > 0
+    (video,) = videos.glob("*.mp4")
+    reader = imageio_ffmpeg.read_frames(str(video))  # decodes it: a playable file
+    assert tuple(next(reader)["size"]) == (frames[0].shape[1], frames[0].shape[0])
+    assert len(list(reader)) == 4  # reset + 3 actions
+
+
 # -- the case, the gusts, the slots ----------------------------------------------------------
 
 
@@ -234,6 +344,49 @@ def test_one_coupled_episode_of_four_participants(tmp_path: Path) -> None:
             assert np.ptp(swing[agent]) > 5e-3, f"the {agent} flap does not swing"
     finally:
         env.close()
+    assert kill_recorded_groups(env.env_dir) == []
+
+
+@pytest.mark.precice
+@pytest.mark.openfoam
+@pytest.mark.dealii
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+@real
+def test_one_rendered_step_draws_the_fluid_and_both_bent_flaps(tmp_path: Path) -> None:
+    """One step of the training case with ``render_mode="rgb_array"``: pimpleFoam's ``U``
+    and both deal.II solids' snapshots in one frame, which changes with the step.
+
+    Cost: about 20 s on 2 cores (18 s measured on a busy machine: 0.2 s of flow, a 0.1 s
+    gust and one action of an episode of two; mesh and reset about 5 s).
+    """
+    from gymprecice_dealii.fields import read_vtk
+
+    env = TwoFlapsFastEnv(
+        run_root=tmp_path, settle_time=0.1, episode_time=0.2, render_mode="rgb_array"
+    )
+    try:
+        env.reset(seed=0, options={"split": "eval"})
+        solvers = {process.name for process in env._engine._gymprecice.run.session.solvers}
+        assert solvers == {"fluid", "upstream", "downstream"}
+        first = env.render()
+        env.step(_act(env, 1.0))
+        second = env.render()
+        dirs = env.solver_dirs
+    finally:
+        env.close()
+    for frame in (first, second):
+        _check_frame(env, frame)
+    assert second.shape == first.shape
+    assert np.abs(second.astype(int) - first.astype(int)).sum() > 0
+    assert (dirs["fluid"] / "0.2" / "U").is_file()  # one U per action: the frame's fluid
+    for flap in FLAPS:
+        output = dirs[flap.solver] / "dealii-output"
+        # the start, and one snapshot per action: the gust's and the step's
+        written = {p.name for p in output.iterdir()}
+        assert {f"solution-{k:03d}.vtk" for k in range(3)} <= written
+        moved = read_vtk(output / "solution-002.vtk").point_data["displacement"]
+        assert np.abs(moved[:, 0]).max() > 1e-4, f"the {flap.agent} flap is not bent"
     assert kill_recorded_groups(env.env_dir) == []
 
 

@@ -226,6 +226,16 @@ class EnvCard:
     #: doctor marks required. Commands stop in one line when one is missing (``--double``
     #: needs none)
     solver_checks: tuple[str, ...] = ()
+    #: the checks that replace ``solver_checks`` where the env is made with one keyword
+    #: argument's value, keyed ``"keyword=value"``: ``{"solid=fenics": ("pyprecice",
+    #: "openfoam", "fenics")}`` for an env whose ``solid="fenics"`` runs another solver;
+    #: the first key that the env's keyword arguments match wins (default: none)
+    solver_checks_with: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    #: the agents of a joint multi-agent env (:class:`gymprecice.multiagent.JointEnv`),
+    #: one per row of its observation and action, in row order: ``train --shared-policy``
+    #: trains one policy that every agent shares (each row is one agent's sample), and the
+    #: lab runs such a policy on every row; default: none, one controller for the env
+    agents: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         # Plain containers, so a card pickles (Ray tasks, worker processes). Field types are
@@ -234,7 +244,13 @@ class EnvCard:
         # instead of breaking the hook and leaving the env unregistered.
         if isinstance(self.uncontrolled, Mapping):
             object.__setattr__(self, "uncontrolled", dict(self.uncontrolled))
-        for listed in ("metrics", "solver_checks"):
+        if isinstance(self.solver_checks_with, Mapping):
+            checks = {
+                key: tuple(value) if isinstance(value, list) else value
+                for key, value in self.solver_checks_with.items()
+            }
+            object.__setattr__(self, "solver_checks_with", checks)
+        for listed in ("metrics", "solver_checks", "agents"):
             if isinstance(getattr(self, listed), list):
                 object.__setattr__(self, listed, tuple(getattr(self, listed)))
 
@@ -243,6 +259,15 @@ class EnvCard:
         _check_fields(self, "EnvCard")
         if self.reference is not None:
             self.reference.check()
+        for key, checks in self.solver_checks_with.items():
+            keyword, sep, _ = str(key).partition("=")
+            if not (isinstance(key, str) and sep and keyword.strip()) or not _is_instance(
+                checks, tuple[str, ...]
+            ):
+                raise CardError(
+                    "EnvCard field 'solver_checks_with' maps 'keyword=value' to a tuple of "
+                    f"check names, got {key!r}: {checks!r}"
+                )
         for spec_field in ("feedback_law", "policies"):
             value = getattr(self, spec_field)
             if value is not None and ":" not in value:
@@ -263,6 +288,16 @@ class EnvCard:
                 f"reference)"
             )
         return value
+
+    def checks_for(self, kwargs: Mapping[str, Any]) -> tuple[str, ...]:
+        """The ``solver_checks`` of the env made with ``kwargs``: the first entry of
+        ``solver_checks_with`` whose ``keyword=value`` they match, else ``solver_checks``."""
+        for key, checks in self.solver_checks_with.items():
+            keyword, _, value = key.partition("=")
+            keyword, value = keyword.strip(), value.strip()
+            if keyword in kwargs and str(kwargs[keyword]) == value:
+                return tuple(checks)
+        return self.solver_checks
 
 
 # -- the registry of declared cards ------------------------------------------------------

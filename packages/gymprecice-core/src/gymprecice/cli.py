@@ -1,8 +1,10 @@
-"""The ``gymprecice`` command line: ``plugins``, ``check DIR``, ``doctor`` and plugin commands.
+"""The ``gymprecice`` command line: ``plugins``, ``check DIR``, ``doctor``, ``install``,
+``sketch ENV`` and plugin commands.
 
-The three built-in commands answer the questions a new user asks before a first run:
+The first three commands answer the questions a new user asks before a first run:
 what is installed (``plugins``), is my case directory right (``check``), and does this
-machine have the solvers and preCICE (``doctor``). Plugins add their own commands through
+machine have the solvers and preCICE (``doctor``); ``sketch`` draws a case from its files
+(:mod:`gymprecice.sketch_command`). Plugins add their own commands through
 ``gymprecice_register_commands(subparsers)`` (for example the tutorials' ``train``).
 
 Every check is done without running a solver or initialising preCICE, so the commands are
@@ -40,6 +42,7 @@ from gymprecice.plugins import (
     plugin_failures,
     solver_kinds,
 )
+from gymprecice.sketch_command import add_sketch_parser
 from gymprecice.solver import DoctorCheck
 from gymprecice.stack import stack_prefix
 
@@ -87,6 +90,7 @@ def build_parser(pm: GymPrecicePluginManager | None = None) -> argparse.Argument
     p.set_defaults(func=cmd_doctor)
 
     add_install_parser(sub)
+    add_sketch_parser(sub)
 
     _add_plugin_commands(sub, pm or get_plugin_manager())
     return parser

@@ -61,8 +61,11 @@ class Adapter(gym.Env):
     #: The fields ``render()`` draws: ``{solver name: field name or names}``, asked of each
     #: solver's plugin (``gymprecice_read_field``), drawn in this order (the first below).
     render_fields: Mapping[str, str | Sequence[str]] = {}
-    #: A frame's ``(width, height)`` in pixels (multiples of 16 suit video encoders).
-    render_size: tuple[int, int] = (640, 400)
+    #: A frame's ``(width, height)`` in pixels. Height ``None`` (the default): the first
+    #: frame sets it from the drawn domain's aspect ratio (a wide channel, a wide frame),
+    #: a multiple of 16 pixels, and it is kept (see :func:`gymprecice.rendering.frame_height`).
+    #: Fixed sizes: multiples of 16 suit video encoders.
+    render_size: tuple[int, int | None] = (640, None)
     #: Reward of the step in which a solver diverged; the configuration's
     #: ``environment.divergence_penalty`` overrides it. Pick it on the scale of the task's
     #: rewards: low enough that diverging never pays better than controlling.

@@ -4,11 +4,14 @@ An env names the fields to draw in ``render_fields`` (``{solver: field or fields
 are checked against the configuration at reset (each rendering solver is told which fields
 to write, and how often: once per action), and at render time read from each solver's
 plugin (``gymprecice_read_field``) at the current coupling time and drawn by
-:class:`~gymprecice.rendering.FrameRenderer`, the env's overlay on top.
+:class:`~gymprecice.rendering.FrameRenderer`, the env's overlay on top. The same quantity
+of several solvers (two flaps' displacement) is drawn as one layer (:func:`shared_layers`).
 """
 
 from __future__ import annotations
 
+import dataclasses
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -21,7 +24,7 @@ from gymprecice.errors import ConfigError
 from gymprecice.fields import Field, Overlay
 from gymprecice.plugins import solver_kinds
 
-__all__ = ["Frames", "checked_render_mode", "field_requests"]
+__all__ = ["Frames", "checked_render_mode", "field_requests", "shared_layers"]
 
 
 def checked_render_mode(
@@ -65,6 +68,69 @@ def field_requests(
     return requests
 
 
+def shared_layers(layers: Sequence[tuple[str, Field]]) -> list[tuple[str, Field]]:
+    """``layers`` (``("solver/name", Field)``) as a frame of several participants shows them.
+
+    Solvers of the same kind hand over the same quantity under the same label (two
+    deal.II flaps: ``displacement``, ``|u| [m]`` twice). Fields of one name and label
+    that all carry their own triangles are drawn as one layer (``"upstream+downstream/
+    displacement"``): one colour bar and one colour scale for all of them, so the flaps
+    compare at a glance. Any label still shown twice (fields without triangles, which
+    one triangulation would bridge) gets its solver's name in front, so the colour bars
+    tell whose field they are.
+    """
+    groups: dict[tuple[str, str], list[int]] = {}
+    for index, (label, field) in enumerate(layers):
+        if field.triangles is not None:
+            groups.setdefault((field.name, field.label or label), []).append(index)
+    joined: dict[int, tuple[str, Field]] = {}
+    dropped: set[int] = set()
+    for members in groups.values():
+        if len(members) > 1:
+            joined[members[0]] = _joined([layers[i] for i in members])
+            dropped.update(members[1:])
+    out = [joined.get(i, layer) for i, layer in enumerate(layers) if i not in dropped]
+    shown = Counter(field.label or label for label, field in out)
+    named = []
+    for label, field in out:
+        text = field.label or label
+        if shown[text] > 1:
+            field = dataclasses.replace(field, label=f"{label.split('/', 1)[0]} {text}")
+        named.append((label, field))
+    return named
+
+
+def _joined(layers: Sequence[tuple[str, Field]]) -> tuple[str, Field]:
+    """One field of several solvers' meshes, their triangles renumbered."""
+    fields = [field for _, field in layers]
+    offsets = np.cumsum([0] + [len(f.points) for f in fields[:-1]])
+    same_width = len({f.values.shape[1:] for f in fields}) == 1
+    moved = any(f.displacement is not None for f in fields)
+    first = fields[0]
+    joined = Field(
+        first.name,
+        max(f.time for f in fields),
+        np.concatenate([f.points for f in fields]),
+        np.concatenate([f.values if same_width else f.scalar for f in fields]),
+        triangles=np.concatenate(
+            [f.triangles + k for f, k in zip(fields, offsets, strict=True)]  # type: ignore[operator]
+        ),
+        displacement=(
+            np.concatenate(
+                [
+                    f.displacement if f.displacement is not None else np.zeros_like(f.points)
+                    for f in fields
+                ]
+            )
+            if moved
+            else None
+        ),
+        label=first.label,
+    )
+    solvers = "+".join(label.split("/", 1)[0] for label, _ in layers)
+    return f"{solvers}/{first.name}", joined
+
+
 class Frames:
     """Reads the requested fields of one env's solvers and draws them (renderer kept)."""
 
@@ -78,7 +144,7 @@ class Frames:
         *,
         time: float,
         window: float | None,
-        size: tuple[int, int],
+        size: tuple[int, int | None],
         overlay: Callable[[], Overlay | None],
         title: str,
     ) -> np.ndarray:
@@ -98,10 +164,11 @@ class Frames:
                     timeout=run.timeouts.progress,
                     alive=run.solvers_alive,
                     plugin=kinds[ctx.kind].plugin if ctx.kind in kinds else None,
+                    exited=run.session is None,  # the episode is over: its solvers are gone
                 )
                 layers.append((f"{solver}/{name}", field))
         if self._renderer is None:
             from gymprecice.rendering import FrameRenderer
 
             self._renderer = FrameRenderer(*size)
-        return self._renderer.draw(layers, overlay(), title)
+        return self._renderer.draw(shared_layers(layers), overlay(), title)

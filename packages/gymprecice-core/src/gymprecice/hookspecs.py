@@ -57,7 +57,7 @@ the call that ran the hook: ``gymprecice_validate_case`` from ``Adapter(...)`` a
 ``reset()`` and ``step()``; ``gymprecice_interface_geometry`` from the first
 ``reset()`` (or ``env.interface_geometry``); ``gymprecice_open_output`` from
 ``env.open_output`` in the env's own code; ``gymprecice_read_field`` from
-``env.render()``. A problem *returned* by ``gymprecice_validate_case`` becomes a
+``env.render()``; ``gymprecice_sketch_case`` from ``gymprecice sketch``. A problem *returned* by ``gymprecice_validate_case`` becomes a
 ``ConfigError`` naming the configuration file and the solver; one returned by ``gymprecice_check_solver`` fails the reset (or joins the
 crash report of an exited solver) as a :class:`~gymprecice.errors.SolverCrashedError`
 that names the solver and the env, so the message itself need not.
@@ -74,6 +74,7 @@ from gymprecice.errors import CaseError, ConfigError
 from gymprecice.fields import Field
 from gymprecice.options import refuse_unknown_options, unknown_option_problems
 from gymprecice.readers import rows_through
+from gymprecice.sketch import SketchPatch, SketchPoints, SolverSketch
 from gymprecice.solver import (
     LIBRARY_ENV_VAR,
     TEST_DOUBLE_LIBRARY,
@@ -103,7 +104,10 @@ __all__ = [
     "InterfaceGeometry",
     "LaunchSpec",
     "OutputReader",
+    "SketchPatch",
+    "SketchPoints",
     "SolverContext",
+    "SolverSketch",
     "WaitableOutputReader",
     "WatchPointLog",
     "hookimpl",
@@ -288,6 +292,24 @@ def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Fiel
     ``solver.field_interval`` the coupling time between two frames (one action). ``None``
     means "not my kind"; when no plugin answers, ``render()`` raises a
     :class:`~gymprecice.errors.ConfigError` naming the solver's plugin and this hook.
+    """
+
+
+@hookspec(firstresult=True)
+def gymprecice_sketch_case(solver: SolverContext) -> SolverSketch | None:
+    """Describe the solver's case for ``gymprecice sketch``: its domain, patches and sensors.
+
+    Called with the context core builds for validation (``solver.run_dir`` and
+    ``solver.source_dir`` are both the pristine case: never write there), by
+    ``gymprecice sketch`` only. Return a :class:`~gymprecice.sketch.SolverSketch` read from
+    the case files: the boundary patches as segments in the x-y plane with their kind
+    and the preCICE meshes on each, the loops bounding the domain, the solver's own
+    sensors (probes) and each preCICE mesh's vertices. A mesh the case only describes
+    (a ``blockMeshDict``) may be built in a temporary directory of the plugin's own,
+    removed before the hook returns: nothing may be left running or written. Raise
+    :class:`~gymprecice.errors.CaseError` naming the file and the fix when the case cannot
+    be read (no mesh and no tool to build it). ``None`` means "not my kind"; a solver no
+    plugin sketches is named in the sketch as not drawn.
     """
 
 

@@ -93,6 +93,13 @@ def add_install_parser(sub: Any) -> None:
     p.add_argument("--list", action="store_true", help="list the steps and their state")
     p.add_argument("--force", action="store_true", help="rebuild even what is built")
     p.add_argument("--jobs", type=int, default=None, help="parallel compile jobs (default: CPUs)")
+    p.add_argument(
+        "--at-once",
+        type=int,
+        default=1,
+        metavar="N",
+        help="build up to N steps side by side once what they require is built (default: 1)",
+    )
     p.set_defaults(func=cmd_install)
 
 
@@ -113,7 +120,7 @@ def cmd_install(args: argparse.Namespace) -> int:
         return 2
     started = time.monotonic()
     print(f"[install] prefix {stack_prefix()}")
-    results = install(ordered, force=args.force, jobs=args.jobs)
+    results = install(ordered, force=args.force, jobs=args.jobs, at_once=args.at_once)
     width = max(len(r.step.name) for r in results)
     print(f"[install] summary ({time.monotonic() - started:.0f} s):")
     for r in results:

@@ -22,7 +22,7 @@ import time as _time
 from collections.abc import Callable
 from typing import Any
 
-from gymprecice.errors import CaseError, ConfigError, SolverTimeoutError
+from gymprecice.errors import CaseError, ConfigError, SolverError, SolverTimeoutError
 from gymprecice.fields import Field
 from gymprecice.solver import LaunchSpec, SolverContext
 
@@ -96,15 +96,18 @@ def read_field(
     timeout: float,
     alive: Callable[[], None] | None = None,
     plugin: str | None = None,
+    exited: bool = False,
 ) -> Field:
     """Call ``gymprecice_read_field`` until the solver's snapshot reaches ``time``.
 
     The solver may write a moment after the coupling returned, so an older snapshot (or
     none yet) means "ask again": every :data:`FIELD_POLL_S` seconds, with ``alive()``
-    raising if a solver died, until ``timeout``. No plugin answering at all is an error
-    naming the solver's plugin (``plugin``) and the hook.
+    raising if a solver died, until ``timeout``. Once the solver has ``exited`` (the
+    episode is over: a render after its last step) nothing more will be written: one
+    look, and a missing snapshot is a :class:`SolverError` at once, not a wait. No plugin
+    answering at all is an error naming the solver's plugin (``plugin``) and the hook.
     """
-    deadline = _time.monotonic() + max(0.0, timeout)
+    deadline = _time.monotonic() + (0.0 if exited else max(0.0, timeout))
     answered = None
     while True:
         answered = hook.gymprecice_read_field(solver=ctx, name=name, time=time)
@@ -127,6 +130,14 @@ def read_field(
                 return answered
         if _time.monotonic() >= deadline:
             have = "none" if answered is None else f"the latest at t={answered.time:g}"
+            if exited:
+                raise SolverError(
+                    f"{ctx.describe()}: field {name!r} at t={time:g} was not written before "
+                    f"the solver exited at the episode's end ({have}); its plugin must make "
+                    "it write the fields at the coupling's last step too",
+                    env_index=ctx.env_index,
+                    solver=ctx.name,
+                )
             raise SolverTimeoutError(
                 f"{ctx.describe()}: field {name!r} at t={time:g} was not written within "
                 f"{timeout:g} s ({have}); check that the solver writes it at every action",

@@ -21,6 +21,14 @@ artists their new values (``set_array``; a new triangulation only where the poin
 moved) and redraws them over a saved image of everything else (Agg blitting). That image
 is redrawn only when a colour bar's limits widen or the axes' limits change
 (``benchmarks/bench_render.py`` measures a frame).
+
+A frame's shape follows the drawn domain: its width is fixed and, unless the env fixes
+the height too, its height is chosen at the first frame (:func:`frame_height`) so that
+the domain, at its own aspect ratio, fills the space beside the colour bars: a wide
+channel gets a wide frame instead of white bands above and below it. The height is then
+kept for every later frame (a video, RecordVideo's too, needs one size), clamped to
+:data:`MIN_HEIGHT` to :data:`MAX_HEIGHT` times the width, and a multiple of
+:data:`SIZE_STEP` pixels, which video encoders take as it is.
 """
 
 from __future__ import annotations
@@ -34,7 +42,7 @@ import numpy as np
 
 from gymprecice.fields import Field, Overlay
 
-__all__ = ["FrameRenderer", "MissingRenderDependency"]
+__all__ = ["FrameRenderer", "MissingRenderDependency", "frame_height"]
 
 #: A triangle bridges a hole of the domain (a cylinder, a slit) and is masked when its
 #: longest edge is longer than this many times the distance from each of its corners to
@@ -47,6 +55,18 @@ _SEQUENTIAL = ("viridis", "inferno", "cividis", "magma")
 #: When a field leaves its colour scale, the scale widens this fraction of its span past
 #: the new values (the first frame's scale is tight).
 HEADROOM = 0.1
+#: A frame's height (when the env leaves it to the domain): at least and at most these
+#: fractions of its width (a very wide channel still gets room for its colour bars; a
+#: tall domain gets a frame no taller than this)...
+MIN_HEIGHT = 0.3
+MAX_HEIGHT = 1.25
+#: ...and a multiple of this many pixels: even, as libx264's yuv420p needs, and whole
+#: macro blocks, which imageio's ffmpeg writer would otherwise resize to.
+SIZE_STEP = 16
+#: The space around the axes, in pixels at 100 dpi: the y and x tick labels, the title
+#: above, the right edge; each colour bar takes :data:`_BAR_SLOT` (bar, ticks, label).
+_LEFT, _BOTTOM, _TOP, _RIGHT = 44, 24, 26, 12
+_BAR_SLOT, _BAR_WIDTH, _BAR_GAP = 62, 12, 8
 
 
 class MissingRenderDependency(ImportError):
@@ -101,6 +121,25 @@ class _Scale:
     cmap: str
     low: float
     high: float
+
+
+def frame_height(width: int, extent: tuple[float, float], bars: int = 1, dpi: int = 100) -> int:
+    """The height of a ``width``-pixel frame that shows ``extent`` (its width, height).
+
+    The axes take the frame's width less the margins and ``bars`` colour bars; their
+    height is that width times the extent's aspect ratio, and the frame adds the
+    margins above and below. Clamped to :data:`MIN_HEIGHT` .. :data:`MAX_HEIGHT` times
+    ``width`` and rounded up to a multiple of :data:`SIZE_STEP`.
+    """
+    scale = dpi / 100.0
+    span_x, span_y = (max(float(v), 0.0) for v in extent)
+    axes_width = width - scale * (_LEFT + _RIGHT + _BAR_SLOT * bars)
+    aspect = span_y / span_x if span_x > 0 else 1.0
+    wanted = scale * (_TOP + _BOTTOM) + max(axes_width, 1.0) * aspect
+    low = int(np.ceil(MIN_HEIGHT * width / SIZE_STEP)) * SIZE_STEP
+    high = max(low, int(MAX_HEIGHT * width // SIZE_STEP) * SIZE_STEP)
+    height = int(np.ceil(wanted / SIZE_STEP)) * SIZE_STEP
+    return min(max(height, low), high)
 
 
 def _fingerprint(points: np.ndarray) -> str:
@@ -158,15 +197,29 @@ def hole_mask(points: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
     return mask if mask.any() else None
 
 
+def _limits(
+    layers: Sequence[tuple[str, Field]],
+) -> tuple[tuple[float, float, float, float], float]:
+    """The axes' limits ``(x0, x1, y0, y1)`` around every layer's positions, and the pad."""
+    boxes = [(f.positions.min(axis=0), f.positions.max(axis=0)) for _, f in layers]
+    low = np.min([b[0] for b in boxes], axis=0)
+    high = np.max([b[1] for b in boxes], axis=0)
+    pad = 0.02 * float(np.max(high - low) or 1.0)
+    limits = (low[0] - pad, high[0] + pad, low[1] - pad, high[1] + pad)
+    return tuple(float(v) for v in limits), pad  # type: ignore[return-value]
+
+
 class FrameRenderer:
     """Draw layers of fields and an overlay into ``height x width`` RGB frames.
 
     One renderer per env: it keeps each layer's triangulation and colour scale, and the
     figure itself, between frames. ``layers`` are ``(label, Field)`` pairs, drawn in order
-    (the first below).
+    (the first below). ``height=None`` (the default): the first frame chooses it from the
+    drawn domain (:func:`frame_height`) and every later frame keeps it (``height`` is
+    ``None`` until then).
     """
 
-    def __init__(self, width: int = 640, height: int = 400, dpi: int = 100) -> None:
+    def __init__(self, width: int = 640, height: int | None = None, dpi: int = 100) -> None:
         try:
             import matplotlib
 
@@ -177,10 +230,12 @@ class FrameRenderer:
             raise MissingRenderDependency(
                 "rendering needs matplotlib: pip install 'gymprecice-core[render]'"
             ) from exc
-        if width < 64 or height < 64:
+        if width < 64 or (height is not None and height < 64):
             raise ValueError(f"a frame must be at least 64 x 64 pixels, got {width} x {height}")
-        self.width, self.height, self.dpi = int(width), int(height), int(dpi)
-        self._figure = Figure(figsize=(self.width / dpi, self.height / dpi), dpi=dpi)
+        self.width, self.dpi = int(width), int(dpi)
+        self.height: int | None = None if height is None else int(height)
+        shown = self.width if self.height is None else self.height
+        self._figure = Figure(figsize=(self.width / dpi, shown / dpi), dpi=dpi)
         self._canvas = FigureCanvasAgg(self._figure)
         self._meshes: dict[str, _Mesh] = {}
         self._drawn: dict[str, _Drawn] = {}
@@ -241,34 +296,59 @@ class FrameRenderer:
         return scale
 
     # -- the kept figure -----------------------------------------------------------------
-    def _build(self, layers: Sequence[tuple[str, Field]]) -> _Scene:
-        """Axes, one colour bar per layer and the title, for this set of layers."""
+    def _build(
+        self, layers: Sequence[tuple[str, Field]], limits: tuple[float, float, float, float]
+    ) -> _Scene:
+        """Axes, one colour bar per layer and the title, for this set of layers.
+
+        Laid out in pixels: the axes fill the frame but for the margins and the colour
+        bars; the domain (``limits``, drawn at its aspect ratio) sits at the axes' left,
+        and the colour bars follow it, as tall as it is.
+        """
         from matplotlib.cm import ScalarMappable
         from matplotlib.colors import Normalize
 
         fig = self._figure
         fig.clear()
-        bar_width = 0.018
-        bar_space = 0.085
-        right = 0.97 - bar_space * len(layers)
-        ax = fig.add_axes((0.06, 0.08, right - 0.07, 0.82))
+        width, height = float(self.width), float(self.height or self.width)
+        px = self.dpi / 100.0
+        left, bottom = px * _LEFT, px * _BOTTOM
+        axes_w = max(width - px * (_LEFT + _RIGHT + _BAR_SLOT * len(layers)), 8.0)
+        axes_h = max(height - px * (_TOP + _BOTTOM), 8.0)
+        span_x, span_y = limits[1] - limits[0], limits[3] - limits[2]
+        aspect = span_y / span_x if span_x > 0 else 1.0
+        drawn_h = min(axes_h, aspect * axes_w)
+        drawn_w = min(axes_w, axes_h / aspect) if aspect > 0 else axes_w
+        ax = fig.add_axes((left / width, bottom / height, axes_w / width, axes_h / height))
         ax.set_autoscale_on(False)
         ax.set_aspect("equal", adjustable="box")
+        ax.set_anchor("W")
         ax.tick_params(labelsize=6)
+        inset = min(8.0 * px, 0.04 * drawn_h)
+        bar_bottom = bottom + (axes_h - drawn_h) / 2 + inset
+        bar_height = max(drawn_h - 2 * inset, 8.0)
         kept: dict[str, _Layer] = {}
         for index, (label, field) in enumerate(layers):
             scale = self._scale(label, field.scalar)
             mappable = ScalarMappable(Normalize(scale.low, scale.high), scale.cmap)
-            cax = fig.add_axes((right + index * bar_space + 0.01, 0.12, bar_width, 0.74))
+            bar_left = left + drawn_w + px * (_BAR_GAP + index * _BAR_SLOT)
+            cax = fig.add_axes(
+                (
+                    bar_left / width,
+                    bar_bottom / height,
+                    px * _BAR_WIDTH / width,
+                    bar_height / height,
+                )
+            )
             bar = fig.colorbar(mappable, cax=cax)
             bar.ax.tick_params(labelsize=6)
             bar.set_label(field.label or f"{label}", fontsize=7)
             kept[label] = _Layer(artist=None, mappable=mappable)
-        title = fig.suptitle("", fontsize=9, y=0.985)
+        title = fig.suptitle("", fontsize=9, y=1.0 - 4.0 * px / height, va="top")
         title.set_animated(True)
         return _Scene(tuple(label for label, _ in layers), ax, kept, title, [])
 
-    def _update_layer(self, scene: _Scene, label: str, field: Field) -> tuple[bool, np.ndarray]:
+    def _update_layer(self, scene: _Scene, label: str, field: Field) -> bool:
         """Hand the layer's artist its new values; whether the background must be redrawn."""
         from matplotlib.collections import TriMesh
 
@@ -289,8 +369,7 @@ class FrameRenderer:
             scene.ax.add_collection(layer.artist, autolim=False)
             layer.tri = tri
         layer.artist.set_array(values)
-        positions = field.positions
-        return stale, np.stack([positions.min(axis=0), positions.max(axis=0)])
+        return stale
 
     # -- one frame -----------------------------------------------------------------------
     def draw(
@@ -302,21 +381,21 @@ class FrameRenderer:
         """One frame: every layer, the overlay and the title, as ``(height, width, 3)`` uint8."""
         if not layers:
             raise ValueError("nothing to draw: no field layers")
+        limits, pad = _limits(layers)
+        if self.height is None:  # the first frame: the domain decides, once
+            extent = (limits[1] - limits[0], limits[3] - limits[2])
+            self.height = frame_height(self.width, extent, len(layers), self.dpi)
+            self._figure.set_size_inches(self.width / self.dpi, self.height / self.dpi)
         labels = tuple(label for label, _ in layers)
         if self._scene is None or self._scene.labels != labels:
-            self._scene = self._build(layers)
+            self._scene = self._build(layers, limits)
         scene = self._scene
         stale = scene.background is None
-        boxes = []
         for label, field in layers:
-            changed, box = self._update_layer(scene, label, field)
-            stale = stale or changed
-            boxes.append(box)
-        low = np.min([b[0] for b in boxes], axis=0)
-        high = np.max([b[1] for b in boxes], axis=0)
-        pad = 0.02 * float(np.max(high - low) or 1.0)
-        limits = (low[0] - pad, high[0] + pad, low[1] - pad, high[1] + pad)
-        if scene.limits is None or not np.allclose(limits, scene.limits, rtol=0, atol=1e-3 * pad):
+            stale = self._update_layer(scene, label, field) or stale
+        # A moving mesh shifts its outer cells a little at every frame: the limits' pad
+        # keeps such a shift in view, so only a larger one redraws the kept figure.
+        if scene.limits is None or not np.allclose(limits, scene.limits, rtol=0, atol=0.25 * pad):
             scene.ax.set_xlim(limits[0], limits[1])
             scene.ax.set_ylim(limits[2], limits[3])
             scene.limits = limits

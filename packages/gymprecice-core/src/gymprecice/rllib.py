@@ -32,6 +32,9 @@ Keyword arguments given to :func:`register_env` (or :class:`EnvCreator`) go to e
 ``normalize_actions`` (on by default) maps the policy's output onto the env's ``Box``
 bounds, however small (the jets' flow rates are of order 1e-4 m³/s).
 
+A multi-agent env (:class:`~gymprecice.multiagent.MultiAgentAdapter`) is registered for
+RLlib's multi-agent API by :mod:`gymprecice.multiagent.rllib`, through the same creator.
+
 Needs ``gymprecice-core[rllib]``; ``ray[rllib]`` 2.60 pins ``gymnasium==1.2.2``, which
 gymprecice supports.
 """

@@ -23,8 +23,9 @@ docs/benchmark.md on one environment, reusing the other commands for each piece:
    (:mod:`gymprecice_lab.feedback`) or, for an env with a law of its own (the heated
    plate's PID), of that law's grid, each chosen by its mean objective;
 4. **aggregate** per controller the mean and the interquartile mean of the objective (and
-   of the mean Cd where the env reports it), each with a 95 % stratified-bootstrap interval
-   (:mod:`gymprecice_lab.benchmark_stats`), into ``results.md``, ``results.csv`` and
+   of the env's own metrics: its card's ``metrics``, the cylinders' drag and lift over
+   every solver step, the fractions of a drag floor), each with a 95 %
+   stratified-bootstrap interval (:mod:`gymprecice_lab.benchmark_stats`), into ``results.md``, ``results.csv`` and
    ``results.json``, and draw ``return_wallclock.png`` (training return against wall-clock,
    mean over seeds with a 95 % band) and ``objective_per_start.png``.
 
@@ -62,6 +63,7 @@ from gymprecice_lab.command_runs import (
 from gymprecice_lab.hyperparams import ALGORITHMS
 from gymprecice_lab.lab_env import LabEnv, LabEnvError, find_lab_env
 from gymprecice_lab.remote_commands import RemoteCommand
+from gymprecice_lab.starts import describe_starts
 
 __all__ = [
     "BenchmarkError",
@@ -479,14 +481,17 @@ def _check_ray(address: str, needs: Sequence[tuple[str, float]]) -> None:
 
 
 def _scores(summary: dict[str, Any], env: LabEnv, starts: int) -> dict[str, list[float]]:
-    """Per held-out start (in index order) the objective and, if recorded, the mean Cd."""
+    """Per start (in index order) the objective and, where recorded, the env's own metrics:
+    the force coefficients over every solver step (the cylinders), the fractions of the
+    card's reference and the episode mean of each of the card's ``metrics``."""
     from gymprecice_lab.evaluate import episodes_by_start
     from gymprecice_lab.sweep import objective
 
     episodes = episodes_by_start(summary)
     if len(episodes) != starts:
         raise BenchmarkError(
-            f"an evaluation has {len(episodes)} episode(s) for {starts} held-out start(s); "
+            f"an evaluation has {len(episodes)} episode(s) for "
+            f"{describe_starts(starts, env.held_out_starts)}; "
             "rerun with --fresh",
             1,
         )
@@ -494,9 +499,16 @@ def _scores(summary: dict[str, Any], env: LabEnv, starts: int) -> dict[str, list
     for metric, key in _SERIES_METRICS:
         if all(e.get(key) is not None for e in episodes):
             out[metric] = [float(e[key]) for e in episodes]
-    if all(e.get("mean_Cl") is not None for e in episodes):
+    series = "mean_Cd" in out  # the force coefficients over every solver step
+    if series and all(e.get("mean_Cl") is not None for e in episodes):
         # a steady side force lowers the drag below the shedding's without suppressing it
         out["side_force"] = [abs(float(e["mean_Cl"])) for e in episodes]
+    for name in env.card.metrics:
+        key = f"mean_{name}"
+        if (series and name in ("Cd", "Cl")) or name == env.objective or key in out:
+            continue  # said above: over every solver step, or as the objective
+        if all(e.get(key) is not None for e in episodes):
+            out[key] = [float(e[key]) for e in episodes]
     return out
 
 
@@ -533,6 +545,14 @@ _METRIC_TITLES = {
     "mean_abs_Cl": "mean |lift coefficient| over every solver step (the shedding's swing)",
     "side_force": "|mean lift coefficient|: the steady side force (0 for a symmetric flow)",
 }
+
+
+def _metric_title(metric: str) -> str:
+    """A table's heading: the metric's own, or that of an episode mean of a card metric."""
+    if metric in _METRIC_TITLES:
+        return _METRIC_TITLES[metric]
+    name = metric.removeprefix("mean_")
+    return f"the episode mean of {name} (info['metrics'], a metric of the env's lab card)"
 
 
 def _fmt(e: dict[str, Any]) -> str:
@@ -572,16 +592,20 @@ def write_tables(out: Path, env: LabEnv, starts: Sequence[str], controllers: lis
                     row[f"{m}_{s}_high"] = stats[s]["high"]
             writer.writerow(row)
     objective = env.objective or "negated mean reward per action"
+    if env.objective and env.maximize:
+        objective += ", negated"
     lines = [
         f"# Benchmark: {env.env_id}",
         "",
-        f"From each of the {len(starts)} held-out start(s) ({'; '.join(starts)}): the mean, "
+        *([env.card.description, ""] if env.card.description else []),
+        f"From each of the {describe_starts(len(starts), env.held_out_starts)} "
+        f"({'; '.join(starts)}): the mean, "
         "median and interquartile mean (IQM) over every seed x start score, each with a "
         "95 % stratified-bootstrap interval over seeds (strata: the starts); a controller "
         "run once (runs = 1) has no interval.",
     ]
     for m in metrics:
-        lines += ["", f"## {m}: {_METRIC_TITLES.get(m, m).format(objective=objective)}", ""]
+        lines += ["", f"## {m}: {_metric_title(m).format(objective=objective)}", ""]
         lines += [
             "| controller | kind | runs | " + " | ".join(STATISTICS) + " |",
             "| --- | --- | --- | " + " | ".join("---" for _ in STATISTICS) + " |",
@@ -629,9 +653,17 @@ def benchmark_command(args: argparse.Namespace) -> int:
     print(
         f"gymprecice benchmark: {plan.env.name}: {', '.join(a.upper() for a in plan.algos)} x "
         f"{args.seeds} seed(s), {args.timesteps:,} steps each, evaluated from "
-        f"{len(plan.starts)} held-out start(s); output in {plan.out}",
+        f"{describe_starts(len(plan.starts), plan.env.held_out_starts)}; output in {plan.out}",
         flush=True,
     )
+    if plan.env.card.training_case:
+        case = plan.env.card.training_case
+        print(
+            f"gymprecice benchmark: note: {plan.env.name}'s lab card names {case} as its "
+            f"training case, a cheaper case of the same task: `gymprecice benchmark {case}` "
+            "runs this protocol there at a fraction of the cost",
+            flush=True,
+        )
     _train_seeds(args, plan)  # 1. every seed (with --ray: at once, its envs on the cluster)
     controllers = _evaluate_seeds(args, plan)  # 2. from every held-out start
     if not args.no_baselines:
@@ -659,7 +691,9 @@ def _plan(args: argparse.Namespace) -> _Plan | int:
     if not args.double:
         from gymprecice_lab.requirements import require_solvers
 
-        status = require_solvers(env, "benchmark", verbose=args.require_solvers)
+        status = require_solvers(
+            env, "benchmark", verbose=args.require_solvers, kwargs=args.env_kwargs
+        )
         if status:
             return status
     for algo in algos:
@@ -686,7 +720,7 @@ def _probe(args: argparse.Namespace, env: LabEnv, out: Path) -> tuple[Any, gym.S
     """The evaluation's env, built (no solver starts before a reset) to read its held-out
     starts (else seeds), its action space and its solvers' CPUs; nothing is left on disk."""
     from gymprecice_lab.envs import make_env_checked
-    from gymprecice_lab.starts import evaluation_starts
+    from gymprecice_lab.starts import StartsError, evaluation_starts
     from gymprecice_lab.train import build_env_kwargs
 
     rollout = parse_command(["baseline", args.env, *_common(args, args.eval_time)])
@@ -695,6 +729,8 @@ def _probe(args: argparse.Namespace, env: LabEnv, out: Path) -> tuple[Any, gym.S
         probe = make_env_checked(env.name, env.env_id, 0, kwargs, rescale=False)
         try:
             return evaluation_starts(probe), probe.action_space, _solver_cpus(probe)
+        except StartsError as exc:
+            raise BenchmarkError(str(exc)) from None
         finally:
             probe.close()
     finally:
@@ -822,7 +858,12 @@ def _write_results(args: argparse.Namespace, plan: _Plan, controllers: list[dict
     write_tables(out, plan.env, plan.starts, controllers)
     plot_return_wallclock(out, plan.algos, args.seeds)
     plot_objective_per_start(
-        out / "objective_per_start.png", plan.starts, controllers, plan.env.objective_label
+        out / "objective_per_start.png",
+        plan.starts,
+        controllers,
+        plan.env.objective_label,
+        held_out=plan.env.held_out_starts,
+        description=plan.env.description,
     )
     print((out / "results.md").read_text())
     print(

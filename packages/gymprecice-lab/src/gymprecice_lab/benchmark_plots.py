@@ -107,9 +107,14 @@ def plot_objective_per_start(
     starts: Sequence[str],
     controllers: Sequence[dict[str, Any]],
     objective_label: str,
+    *,
+    held_out: bool = True,
+    description: str = "",
 ) -> Path:
-    """The objective from each held-out start for every controller (lower is better),
-    its axis named ``objective_label`` (the card's objective: ``LabEnv.objective_label``)."""
+    """The objective from each start for every controller (lower is better), its axis
+    named ``objective_label`` (the card's objective: ``LabEnv.objective_label``); the
+    starts are held-out ones, or (``held_out`` False) seeds; ``description`` (the card's)
+    heads the figure."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(starts) + 3), 4))
     x = np.arange(len(starts))
@@ -139,9 +144,11 @@ def plot_objective_per_start(
     # wrapped, so that neighbours do not overprint each other
     ax.set_xticks(x, [textwrap.fill(str(s), 24) for s in starts])
     ax.set_xlim(-0.5, len(starts) - 0.5)
-    ax.set_xlabel("held-out start")
+    kind = "held-out start" if held_out else "start (drawn by its reset seed)"
+    ax.set_xlabel(kind)
     ax.set_ylabel(objective_label)
-    ax.set_title("Objective per held-out start (dots: seeds)")
+    title = f"Objective per {kind.split(' (')[0]} (dots: training seeds)"
+    ax.set_title(f"{textwrap.fill(description, 80)}\n{title}" if description else title)
     ax.legend(fontsize="small")
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -3,8 +3,9 @@
 * :class:`RotatingCheckpoints`: SB3's ``CheckpointCallback`` keeps every checkpoint (8 MB
   each with a 512x512 net, a gigabyte over a long run); this keeps the newest ``keep`` and
   the best one (highest mean episode return when it was saved);
-* :class:`EpisodeMetricsCallback`: the envs' episode means (Cd, Cl, action RMS) in
-  TensorBoard and ``progress.csv``, next to the return;
+* :class:`EpisodeMetricsCallback`: the envs' episode means (of every metric they report in
+  ``info["metrics"]``, and the action RMS) in TensorBoard and ``progress.csv``, next to the
+  return;
 * :func:`stop_signals_interrupt`: SIGTERM (SLURM preemption, ``timeout``) and SIGHUP (a
   closed terminal) stop training the way Ctrl-C does, so the policy is saved.
 """
@@ -22,7 +23,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
-from gymprecice_lab.envs import EPISODE_KEYWORDS, vecnormalize_path
+from gymprecice_lab.envs import EPISODE_METRICS_KEY, vecnormalize_path
 
 __all__ = [
     "BEST_NAME",
@@ -134,19 +135,21 @@ class RotatingCheckpoints(CheckpointCallback):
 
 
 class EpisodeMetricsCallback(BaseCallback):
-    """Log each finished episode's Cd, Cl and action RMS (``env/mean_Cd``, ...).
+    """Log each finished episode's means (``env/mean_Cd``, ``env/mean_tip_displacement``,
+    ..., ``env/action_rms``).
 
-    The Monitor puts them into the episode record (``info["episode"]``); SB3 itself logs
-    only the return and length from there.
+    :class:`~gymprecice_lab.envs.EpisodeMetrics` puts every metric the env reported, as
+    its episode mean, into the final step's ``info["episode_metrics"]``: whatever the env
+    is, its own metrics are logged (SB3 itself logs only the return and length). A metric
+    that is NaN (declared by the card, never reported) is left out.
     """
 
     def _on_step(self) -> bool:
         for info in self.locals.get("infos", []):
-            episode = info.get("episode")
-            if not episode:
+            means = info.get(EPISODE_METRICS_KEY)
+            if not means:
                 continue
-            for key in EPISODE_KEYWORDS:
-                value = episode.get(key)
+            for key, value in means.items():
                 if value is not None and math.isfinite(float(value)):
                     self.logger.record_mean(f"env/{key}", float(value))
         return True

@@ -45,6 +45,7 @@ from typing import Any, NamedTuple
 
 from gymprecice_lab import options as o
 from gymprecice_lab.hyperparams import ALGORITHMS
+from gymprecice_lab.lab_env import lab_envs
 from gymprecice_lab.options import Option, option, positive_float, positive_int
 
 __all__ = ["add_commands"]
@@ -128,6 +129,12 @@ _TRAINING = (
         help="normalise observations and rewards (VecNormalize); the statistics are "
         "saved beside every model and used by evaluate",
     ),
+    option(
+        "--shared-policy",
+        action="store_true",
+        help="a joint multi-agent env (its card's agents): one policy that every agent "
+        "shares, trained on each agent's row; --timesteps counts a step per agent",
+    ),
 )
 
 #: checkpoints, evaluation during training, and how the run shows itself
@@ -210,8 +217,8 @@ def _rollouts() -> list[Command]:
         ),
         Command(
             "baseline",
-            "run the uncontrolled flow (the zero action clipped into the action box)",
-            "Run the uncontrolled flow: the zero action clipped into the action box, in "
+            "run the env uncontrolled (the zero action clipped into the action box)",
+            "Run the env uncontrolled: the zero action clipped into the action box, in "
             "the env's own units (the cylinders: jets closed, cylinder at rest), with the "
             "env keywords of its lab card's 'uncontrolled' where it declares them: what a "
             "controller is judged against; same files as evaluate.",
@@ -221,20 +228,23 @@ def _rollouts() -> list[Command]:
         Command(
             "open-loop",
             "run a sinusoidal open-loop controller",
-            "Force the flow with a sinusoid on every action dimension, the classic "
-            "open-loop control a learned controller should beat; same files as evaluate.",
+            "Force the env with a sinusoid on every action dimension, the classic "
+            "open-loop control a learned controller should beat (at --frequency, else its "
+            "lab card's open_loop_frequency, else a tenth of its action rate); same files "
+            "as evaluate.",
             (*env, *o.OPEN_LOOP, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.BASELINE),
             functools.partial(_run, "open-loop"),
         ),
         Command(
             "feedback",
-            "run a classical feedback law (the lift fed back on the jets)",
-            "Feed one of the env's step metrics (the cylinders' lift Cl) back to "
-            "the actuator: a = clip(centre - gain * half_range * signal(t - delay actions)), "
-            "the textbook first controller a learned one should beat; same files as evaluate. "
-            "`gymprecice sweep --feedback-gains ... --feedback-delays ...` tunes it. An env "
-            "with a feedback law of its own (the heated plate's PID heater) runs one point of "
-            "it instead: --law 'kp=3;ki=50;kd=1'.",
+            "run the env's classical feedback: its own law, or a metric fed back",
+            "Run the env's classical feedback controller, the textbook first one a learned "
+            "controller should beat; same files as evaluate. An env whose lab card names a "
+            "feedback law of its own (feedback_law) runs one point of it: --law NAME=V;... "
+            "with one value per parameter. Otherwise one of the env's step metrics (--signal, "
+            "else its card's feedback_signal) is fed back to the actuator: a = clip(centre - "
+            "gain * half_range * signal(t - delay actions)). `gymprecice sweep` tunes either "
+            f"(--feedback-grid, --feedback-gains/--feedback-delays). {_feedback_listing()}",
             (*env, *o.FEEDBACK, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.BASELINE),
             functools.partial(_run, "feedback"),
         ),
@@ -248,9 +258,10 @@ def _sweep() -> Command:
     return Command(
         "sweep",
         "run the open-loop forcings a learned controller must beat",
-        "Run the uncontrolled flow, N constant actions across the action box and "
-        "a grid of sinusoids (amplitude x frequency) on the held-out starts; write "
-        "sweep.csv, sweep.json (best constant, best sinusoid) and sweep.png.",
+        "Run the env uncontrolled, N constant actions across the action box, "
+        "a grid of sinusoids (amplitude x frequency) and, with --feedback-gains or "
+        "--feedback-grid, its classical feedback, on its held-out starts (else seeds); "
+        "write sweep.csv, sweep.json (best constant, best sinusoid) and sweep.png.",
         (
             *o.env_options(rollout=True),
             *o.SWEEP_GRID,
@@ -264,11 +275,11 @@ def _sweep() -> Command:
 def _compare() -> Command:
     return Command(
         "compare",
-        "compare evaluated controllers with the uncontrolled flow and the best open loop",
+        "compare evaluated controllers with the uncontrolled env and the best open loop",
         "Read gymprecice sweep outputs (the open-loop candidates) and evaluate / "
         "baseline / open-loop outputs (the controllers to judge), all on the same held-out "
         "starts, and write compare.md and compare.json: the objective per start, and each "
-        "controller's margin over the uncontrolled flow, the best constant and the best "
+        "controller's margin over the uncontrolled env, the best constant and the best "
         "sinusoid, per start and as mean and spread. Runs nothing.",
         (
             o.runs_argument("output directories"),
@@ -277,7 +288,7 @@ def _compare() -> Command:
                 nargs=None,
                 const=None,
                 type=Path,
-                help="also put the uncontrolled flow (a baseline RUN made with --video) and each "
+                help="also put the uncontrolled env (a baseline RUN made with --video) and each "
                 "controlled one (evaluate RUNs made with --video) side by side, from the same "
                 "start, in FILE.mp4 or FILE.gif (several starts: FILE-start-K.mp4)",
             ),
@@ -288,8 +299,9 @@ def _compare() -> Command:
 
 # -- benchmark, time-to-floor ------------------------------------------------------------------
 
-#: ``benchmark``'s classical baselines: the sweep's grid, smaller and about the cylinders'
-#: shedding frequency, and the lift feedback's gains only where the env feeds back a signal
+#: ``benchmark``'s classical baselines: the sweep's grid, smaller (its default frequencies
+#: are about the cylinders' shedding frequency), and feedback gains only where the env feeds
+#: back a signal
 _BASELINE_GRID = o.adapted(
     o.SWEEP_GRID,
     constants={"default": 3, "help": "constant actions in the sweep"},
@@ -329,7 +341,7 @@ def _benchmark() -> Command:
         "Train each algorithm with seeds 0..N-1 (resumably: a manifest per seed), "
         "evaluate every policy deterministically from every held-out start, run the "
         "classical baselines on the same starts (uncontrolled, best constant, best "
-        "open-loop sinusoid, best feedback law of a documented sweep) and write "
+        "open-loop sinusoid, best point of the env's classical feedback) and write "
         "results.md/.csv/.json (mean and interquartile mean with 95 % stratified-bootstrap "
         "intervals) and two figures. Settings are recorded in benchmark.json; a rerun "
         "with other settings is refused (--fresh starts over). See docs/benchmark.md.",
@@ -386,12 +398,14 @@ def _benchmark() -> Command:
 def _time_to_floor() -> Command:
     return Command(
         "time-to-floor",
-        "how soon training runs reached 90 / 95 %% of the drag floor",
+        "how soon training runs reached 90 / 95 %% of their env's reference floor",
         "Evaluate each training run's checkpoints in order, deterministically "
-        "from every held-out start, until one reaches the highest --fractions of the drag "
-        "floor once settled; print the wall-clock from the training command's start to the "
-        "first checkpoint reaching each fraction and, over several runs (seeds), the median "
-        "with a 95 % bootstrap interval. Writes time_to_floor.json and .csv. See "
+        "from every held-out start, until one reaches the highest --fractions of the "
+        "floor of the env's reference (its lab card's 'reference': the drop of a metric "
+        "from its uncontrolled value to the best it can reach) once settled; print the "
+        "wall-clock from the training command's start to the first checkpoint reaching "
+        "each fraction and, over several runs (seeds), the median with a 95 % bootstrap "
+        f"interval. Writes time_to_floor.json and .csv. {_reference_listing()} See "
         "docs/benchmark.md.",
         (
             o.runs_argument("training directories"),
@@ -406,7 +420,8 @@ def _time_to_floor() -> Command:
                 type=float,
                 default=4.0,
                 metavar=None,
-                help="simulated seconds per evaluation episode (the first 2 s are the transient)",
+                help="simulated seconds per evaluation episode (the reference's settle_time "
+                "at its start is left out as the transient)",
             ),
             o.OUT.but(help="output (None: <first RUN>/time-to-floor)"),
             o.DOUBLE.but(help="evaluate on the test double (tests)"),
@@ -422,12 +437,13 @@ def _time_to_floor() -> Command:
 def _plot() -> Command:
     return Command(
         "plot",
-        "draw figures: training reward, action history, Cd/Cl against the baseline",
-        "Draw the return over training, the actions and Cd/Cl of run "
-        "directories (train, evaluate, baseline, open-loop).",
+        "draw figures: training reward, actions, the objective against the baseline",
+        "Draw the return over training, the actions, the objective of the env's lab card "
+        "and, for an env with force coefficients (the cylinders), Cd/Cl, of run "
+        "directories (train, evaluate, baseline, open-loop, feedback).",
         (
             o.runs_argument("output directories"),
-            o.BASELINE.but(metavar=None, help="a baseline run to compare Cd/Cl with"),
+            o.BASELINE.but(metavar=None, help="a baseline run drawn as the reference"),
             o.OUT.but(help="where figures go (None: <first RUN>/plots)"),
             option("--format", choices=("png", "pdf", "svg"), default="png", help="file format"),
             option("--dpi", type=positive_int, default=120, help="resolution of PNGs"),
@@ -493,12 +509,38 @@ def _policies() -> list[Command]:
             "policies",
             "list the trained policies shipped with the package",
             "One line per shipped policy: its training env, steps, action bound "
-            "and evaluated mean Cd (or the env's objective). Evaluate one with `gymprecice "
+            "and evaluated objective (its env's; the cylinders: mean Cd). Evaluate one with "
+            "`gymprecice "
             "evaluate ENV --policy NAME`.",
             (),
             functools.partial(_run, "policies"),
         ),
     ]
+
+
+# -- what the installed envs' cards say, for the help texts ---------------------------------
+
+
+def _feedback_listing() -> str:
+    """Each installed env's classical feedback, as its card declares it (for --help)."""
+    envs = lab_envs()
+    laws = [e.name for e in envs if e.feedback_law]
+    signals: dict[str, list[str]] = {}
+    for env in envs:
+        if env.feedback_signal and not env.feedback_law:
+            signals.setdefault(env.feedback_signal, []).append(env.name)
+    parts = [f"{', '.join(names)}: {signal} fed back" for signal, names in signals.items()]
+    if laws:
+        parts.append(f"{', '.join(laws)}: a law of its own")
+    return f"Installed: {'; '.join(parts)}." if parts else ""
+
+
+def _reference_listing() -> str:
+    """Each installed env's reference, as its card declares it (for --help)."""
+    found = [
+        f"{e.name} ({e.reference.label} of {e.reference.metric})" for e in lab_envs() if e.reference
+    ]
+    return f"Envs with one: {', '.join(found)}." if found else "No installed env declares one."
 
 
 # -- running a command -------------------------------------------------------------------------

@@ -28,8 +28,10 @@ import numpy as np
 from gymprecice_lab.lab_env import find_lab_env
 
 __all__ = [
-    "EPISODE_KEYWORDS",
+    "ACTION_RMS",
+    "EPISODE_METRICS_KEY",
     "EpisodeMetrics",
+    "episode_keywords",
     "find_model",
     "load_normalizer",
     "load_policy",
@@ -38,47 +40,87 @@ __all__ = [
     "vecnormalize_path",
 ]
 
-#: Episode means added to the last step's ``info`` by :class:`EpisodeMetrics` and
-#: recorded by the Monitor (``info_keywords``) and in TensorBoard (``env/...``).
-EPISODE_KEYWORDS = ("mean_Cd", "mean_Cl", "action_rms")
+#: the episode's action RMS (in the env's own units), recorded for every env
+ACTION_RMS = "action_rms"
+#: the final step's ``info`` entry where :class:`EpisodeMetrics` puts every episode mean
+EPISODE_METRICS_KEY = "episode_metrics"
 
 _CHECKPOINT = re.compile(r"^(?P<prefix>[a-z0-9]+)_(?P<steps>\d+)_steps\.zip$")
 
 
-class EpisodeMetrics(gym.Wrapper):
-    """Add the episode's mean Cd, mean Cl and action RMS to the final step's ``info``.
+def episode_keywords(env_id: str) -> tuple[str, ...]:
+    """The Monitor columns of ``env_id`` after ``r, l, t``: ``mean_<name>`` for each metric
+    its lab card names (``objective``, then ``metrics``), then ``action_rms``.
 
-    The Monitor records only what the last ``info`` of an episode holds; the cylinders
-    report per-step averages in ``info["metrics"]``. The action RMS is taken in the env's
-    own units (this wrapper sits inside ``RescaleAction``). Metrics an env does not report
-    are NaN, so every env gives the same Monitor columns.
+    A CSV's columns are fixed when the file is opened, before any step says what the
+    env reports, so they come from the card: the cylinders' (``metrics=("Cd", "Cl")``)
+    give ``mean_Cd, mean_Cl, action_rms``; a flap judged on its tip displacement gives
+    ``mean_mean_tip_displacement, action_rms``; an env without a card ``action_rms``
+    alone. TensorBoard records every metric the env reports (:data:`EPISODE_METRICS_KEY`).
+    """
+    from gymprecice.card import CardError, EnvCard, card_for
+    from gymprecice_lab.lab_env import LabEnv
+
+    try:
+        card = card_for(env_id)
+    except CardError:  # refused: every command says so; the env itself still runs
+        card = EnvCard()
+    names = LabEnv(env_id, card).episode_metrics
+    return (*(f"mean_{name}" for name in names), ACTION_RMS)
+
+
+class EpisodeMetrics(gym.Wrapper):
+    """Add the episode's mean of every metric and its action RMS to the final ``info``.
+
+    The Monitor records only what the last ``info`` of an episode holds; envs report
+    per-step scalars in ``info["metrics"]`` (the cylinders' force coefficients, the flap's
+    tip displacement). At the episode's end each one's mean over the steps that reported
+    it becomes ``info["mean_<name>"]``, and all of them, with ``action_rms``, also
+    ``info["episode_metrics"]`` (what TensorBoard records). A name in ``declared`` (the
+    Monitor's columns) that the env never reported is NaN, so every episode fills the
+    same columns. The action RMS is taken in the env's own units (this wrapper sits
+    inside ``RescaleAction``).
     """
 
-    def __init__(self, env: gym.Env) -> None:
+    def __init__(self, env: gym.Env, declared: tuple[str, ...] = ()) -> None:
         super().__init__(env)
+        self.declared = tuple(declared)
         self._sums: dict[str, float] = {}
+        self._counts: dict[str, int] = {}
         self._steps = 0
         self._action_sq = 0.0
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
-        self._sums, self._steps, self._action_sq = {}, 0, 0.0
+        self._sums, self._counts, self._steps, self._action_sq = {}, {}, 0, 0.0
         return self.env.reset(**kwargs)
 
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._steps += 1
-        for name in ("Cd", "Cl"):
-            value = info.get("metrics", {}).get(name)
-            if value is not None:
-                self._sums[name] = self._sums.get(name, 0.0) + float(value)
+        for name, value in (info.get("metrics") or {}).items():
+            number = _scalar(value)
+            if number is not None:
+                self._sums[name] = self._sums.get(name, 0.0) + number
+                self._counts[name] = self._counts.get(name, 0) + 1
         applied = np.asarray(info.get("action", action), dtype=float).reshape(-1)
         self._action_sq += float(np.mean(applied**2)) if applied.size else 0.0
         if terminated or truncated:
-            for name in ("Cd", "Cl"):
-                total = self._sums.get(name)
-                info[f"mean_{name}"] = total / self._steps if total is not None else float("nan")
-            info["action_rms"] = float(np.sqrt(self._action_sq / self._steps))
+            means = {f"mean_{n}": total / self._counts[n] for n, total in self._sums.items()}
+            for key in self.declared:
+                means.setdefault(key, float("nan"))
+            means[ACTION_RMS] = float(np.sqrt(self._action_sq / self._steps))
+            info.update(means)
+            info[EPISODE_METRICS_KEY] = means
         return obs, reward, terminated, truncated, info
+
+
+def _scalar(value: Any) -> float | None:
+    """``value`` as a float when it is one number (a metric); ``None`` otherwise."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return float(array) if array.ndim == 0 else None
 
 
 def make_env(
@@ -94,7 +136,8 @@ def make_env(
     """One environment as training and evaluation see it (module level: picklable).
 
     ``rescale`` maps a bounded ``Box`` action space to ``[-1, 1]``; ``monitor_file`` records
-    episode returns, lengths and :data:`EPISODE_KEYWORDS` with SB3's ``Monitor``.
+    episode returns, lengths and the episode means of :func:`episode_keywords` with SB3's
+    ``Monitor``.
     ``robustness`` (:mod:`gymprecice.robustness`: sensor and action noise, delay,
     dropout) sits between the policy and the rescaled env, so noise is in the policy's
     units; the vector env's ``seed`` seeds it. ``held_out`` makes every reset take the
@@ -108,7 +151,8 @@ def make_env(
         from gymprecice_lab.starts import HeldOutStarts
 
         env = HeldOutStarts(env)
-    env = EpisodeMetrics(env)
+    keywords = episode_keywords(env_id)
+    env = EpisodeMetrics(env, keywords[:-1])
     space = env.action_space
     if (
         rescale
@@ -123,7 +167,7 @@ def make_env(
 
         env = wrap(env, robustness)
     if monitor_file is not None:
-        env = _monitor(env, monitor_file)
+        env = _monitor(env, monitor_file, keywords)
     return env
 
 
@@ -143,7 +187,7 @@ def make_env_checked(
         ) from None
 
 
-def _monitor(env: gym.Env, monitor_file: str) -> gym.Env:
+def _monitor(env: gym.Env, monitor_file: str, keywords: tuple[str, ...]) -> gym.Env:
     """SB3's Monitor, appending to the file of a resumed run on the same time axis.
 
     SB3 writes a header (with ``t_start``) only into a new file and measures ``t`` from
@@ -158,7 +202,7 @@ def _monitor(env: gym.Env, monitor_file: str) -> gym.Env:
         env,
         filename=monitor_file,
         override_existing=t_start is None,
-        info_keywords=EPISODE_KEYWORDS,
+        info_keywords=keywords,
     )
     if t_start is not None:
         monitor.t_start = t_start

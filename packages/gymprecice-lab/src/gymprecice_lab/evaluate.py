@@ -11,8 +11,10 @@ same files, so ``gymprecice plot`` can put any of them side by side:
 * ``coefficients.csv``: every solver step's ``episode, time`` and the force coefficients
   among the env's ``info["metrics"]`` (the cylinders' ``Cd, Cl``, from each step's
   ``info["coefficients"]`` rows); not written for an env whose metrics have neither;
-* ``summary.json``: per-episode return and the mean of each metric (``mean_Cd``, ...),
-  for the cylinders also the mean Cd and mean |Cl| over every solver step
+* ``summary.json``: per-episode return and the mean of each metric the env reports
+  (``mean_<name>``: the cylinders' ``mean_Cd``, the flap's ``mean_mean_tip_displacement``,
+  the heated plate's ``mean_tracking_error``), for an env with force coefficients (the
+  cylinders) also the mean Cd and mean |Cl| over every solver step
   (``series_mean_Cd``, ``series_mean_abs_Cl``: what a drag-reduction claim is stated in;
   the per-action means differ where the reward averages over a window longer than an
   action), and over the episodes the mean and standard deviation of each
@@ -82,6 +84,7 @@ from gymprecice_lab.shipped_policies import (
     shipped_policies,
 )
 from gymprecice_lab.starts import (
+    StartsError,
     evaluation_starts,
     held_out_starts,
     seed_start_label,
@@ -476,32 +479,42 @@ def _read_baseline(path: Path) -> dict[str, Any]:
         ) from None
 
 
-#: What the one-line report shows: (summary key, label, % change against a baseline?).
-#: The cylinders' drag and lift over every solver step where recorded, else the per-action
-#: metrics. No % for the return or the signed lift: both are about zero uncontrolled (the
-#: reward offset is the uncontrolled drag), so a relative change of them says nothing.
-_REPORTED = {
-    "series": (
-        ("return", "return", False),
-        ("series_mean_Cd", "mean Cd", True),
-        ("series_mean_abs_Cl", "mean |Cl|", True),
-        ("floor_fraction", "fraction of the drag floor", False),
-        ("settled_floor_fraction", "settled", False),
-    ),
-    "actions": (
-        ("return", "return", False),
-        ("mean_Cd", "mean Cd", True),
-        ("mean_Cl", "mean Cl", False),
-    ),
-}
+#: What the one-line report shows of an env with force coefficients (the cylinders): (summary
+#: key, label, % change against a baseline?), their drag and lift over every solver step.
+#: No % for the return or the lift: both are about zero uncontrolled (the reward offset is
+#: the uncontrolled drag), so a relative change of them says nothing.
+_SERIES_REPORTED = (
+    ("return", "return", False),
+    ("series_mean_Cd", "mean Cd", True),
+    ("series_mean_abs_Cl", "mean |Cl|", True),
+)
 
 
-def _report(command: str, summary: dict[str, Any], out: Path) -> str:
-    """One line: mean ± std over the episodes of return, Cd and |Cl| (and % change if known)."""
+def _reported(stats: dict[str, Any], env_info: LabEnv) -> list[tuple[str, str, bool]]:
+    """What the one-line report shows: the cylinders' force coefficients over every solver
+    step where recorded, else the episode means of the env's own metrics (its card's
+    objective, with its % change against a baseline, then its ``metrics``); then the
+    fractions of its reference (a drag floor) where it declares one."""
+    if "series_mean_Cd" in stats:
+        shown = list(_SERIES_REPORTED)
+    else:
+        shown = [("return", "return", False)]
+        objective = env_info.objective
+        for name in env_info.episode_metrics:
+            shown.append((f"mean_{name}", f"mean {name}", name == objective))
+    if env_info.reference is not None:
+        shown.append(("floor_fraction", f"fraction of the {env_info.reference.label}", False))
+        shown.append(("settled_floor_fraction", "settled", False))
+    return shown
+
+
+def _report(command: str, summary: dict[str, Any], out: Path, env_info: LabEnv) -> str:
+    """One line: mean ± std over the episodes of the return and the env's metrics (the
+    cylinders: Cd and |Cl|), with the % change against a baseline where it means something."""
     stats = summary["over_episodes"]
     source = "series" if "series_mean_Cd" in stats else "actions"
     parts = []
-    for key, label, relative in _REPORTED[source]:
+    for key, label, relative in _reported(stats, env_info):
         if key in stats:
             part = f"{label} {stats[key]['mean']:.4f} ± {stats[key]['std']:.4f}"
             change = summary.get("change_percent", {}).get(key)
@@ -547,7 +560,7 @@ def _rollout_command(command: str, args: argparse.Namespace) -> int:
     # what was typed is checked before the machine: a bad --law is the user's to fix anywhere
     own_law = _own_law(args, env_info) if command == "feedback" else None
     if not args.double:
-        status = require_solvers(env_info, command, verbose=args.require_solvers)
+        status = require_solvers(env_info, command, verbose=args.require_solvers, kwargs=kwargs)
         if status:
             return status
     # the robustness wrappers' noise is seeded by each episode's reset seed
@@ -602,7 +615,7 @@ def _rollout_command(command: str, args: argparse.Namespace) -> int:
     manifest = {"case_dir": case_dir, "seeds": seeds, "settings": settings}
     solvers = read_manifest(out)["solvers"]  # as found before the rollout
     write_manifest(out, command=command, solvers=solvers, extra={"result": summary}, **manifest)
-    print(_report(command, summary, out))
+    print(_report(command, summary, out, env_info))
     return 0
 
 
@@ -658,8 +671,12 @@ def _episodes(
     (None without it: each episode's start is drawn by its seed)."""
     if not getattr(args, "all_starts", False):
         return args.episodes, None
-    starts = tuple(evaluation_starts(env, args.seed))
-    if not held_out_starts(env):
+    try:
+        starts = tuple(evaluation_starts(env, args.seed))
+        held_out = held_out_starts(env)
+    except StartsError as exc:
+        raise _Unusable(str(exc)) from None
+    if not held_out:
         print(
             f"gymprecice {command}: {env_info.name} has no held-out starts; its starts "
             f"are {starts[0]} to {starts[-1]} (lab card field "

@@ -59,8 +59,13 @@ def eval_callback(
     n_eval_episodes: int,
     seed: int,
     normalize: bool,
+    agents: tuple[str, ...] = (),
 ) -> EvalCallback:
-    """The evaluation callback of a training run into ``out``."""
+    """The evaluation callback of a training run into ``out``.
+
+    With ``agents`` (a shared policy) the evaluation env has one slot per agent, as the
+    training env does: each of its ``n_eval_episodes`` episodes counts once per agent.
+    """
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     (out / "eval").mkdir(parents=True, exist_ok=True)
@@ -74,14 +79,19 @@ def eval_callback(
     )
     eval_env: Any = DummyVecEnv([fn])
     eval_env.seed(seed + EVAL_SEED_OFFSET)
+    if agents:
+        from gymprecice_lab.shared import shared_vec_env
+
+        eval_env = shared_vec_env(eval_env, agents)
+    slots = n_envs * max(1, len(agents))
     if normalize:
         # statistics are copied from the training env before each evaluation
         eval_env = VecNormalize(eval_env, training=False, norm_reward=False)
     callback = EvalCallback(
         eval_env,
         callback_on_new_best=_SaveBest(out, normalize),
-        n_eval_episodes=n_eval_episodes,
-        eval_freq=max(1, eval_freq // n_envs),
+        n_eval_episodes=n_eval_episodes * max(1, len(agents)),
+        eval_freq=max(1, eval_freq // slots),
         log_path=str(out / "eval"),
         best_model_save_path=str(out),
         deterministic=True,

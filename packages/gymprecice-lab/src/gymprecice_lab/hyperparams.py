@@ -22,6 +22,8 @@ from gymprecice_lab.model_based.settings import ENSEMBLE_KEY, EnsembleSettings
 OVERLAP_KEY = "overlap_updates"
 #: the key that caps the learner's CPU threads (torch.set_num_threads)
 THREADS_KEY = "torch_threads"
+#: the key that trains one policy shared by a joint env's agents (gymprecice_lab.shared)
+SHARED_KEY = "shared_policy"
 
 __all__ = [
     "ALGORITHMS",
@@ -85,6 +87,7 @@ FLAGS = {
     "net": "--net",
     "normalize": "--normalize",
     "algo": "--algo",
+    SHARED_KEY: "--shared-policy",
 }
 
 #: Keys of a hyperparameter file that are not constructor arguments of the algorithm.
@@ -95,6 +98,7 @@ _OWN_KEYS = {
     ENSEMBLE_KEY,
     OVERLAP_KEY,
     THREADS_KEY,
+    SHARED_KEY,
     "noise_type",
     "noise_std",
 }
@@ -186,6 +190,8 @@ def load_hyperparams_file(path: Path, algo: str, env_keys: tuple[str, ...]) -> d
                     "solvers; PPO updates once per rollout (use --algo sac or td3, or drop "
                     "the key)"
                 )
+        if key == SHARED_KEY and not isinstance(value, bool):
+            raise SystemExit(f"{where}: {SHARED_KEY} is true or false, not {value!r}")
         if key == ENSEMBLE_KEY:
             if algo != "ppo":
                 raise SystemExit(

@@ -14,6 +14,7 @@ one line naming the field and how to declare it, before anything is made on disk
 from __future__ import annotations
 
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -149,6 +150,19 @@ class LabEnv:
     @property
     def solver_checks(self) -> tuple[str, ...]:
         return self.card.solver_checks
+
+    def checks_for(self, kwargs: Mapping[str, Any] | None) -> tuple[str, ...]:
+        """The doctor checks the env made with ``kwargs`` needs (card ``solver_checks``,
+        or its ``solver_checks_with`` entry that the keyword arguments match)."""
+        return self.card.checks_for(kwargs or {})
+
+    @property
+    def episode_metrics(self) -> tuple[str, ...]:
+        """The ``info["metrics"]`` entries whose episode means training records in every
+        Monitor file (``mean_<name>`` columns): the card's ``objective``, then its
+        ``metrics``, each once."""
+        names = [self.card.objective] if self.card.objective else []
+        return tuple(dict.fromkeys([*names, *self.card.metrics]))
 
     def require(self, field_name: str, command: str) -> Any:
         """The card's ``field_name``; :class:`LabEnvError` naming the field and how to

@@ -231,8 +231,8 @@ EPISODES = option("--episodes", type=positive_int, default=1, help="episodes to 
 ALL_STARTS = option(
     "--all-starts",
     action="store_true",
-    help="one episode from every held-out start of the env (overrides --episodes; "
-    "refused for an env without held-out starts)",
+    help="one episode from every held-out start of the env (overrides --episodes; an env "
+    "whose lab card declares no held-out starts: one from each of its first five seeds)",
 )
 BASELINE = option(
     "--baseline",

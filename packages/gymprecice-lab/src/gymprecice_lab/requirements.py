@@ -21,14 +21,18 @@ __all__ = ["doctor_text", "missing_names", "missing_requirements", "require_solv
 DEFAULT_CHECKS: tuple[str, ...] = ("pyprecice",)
 
 
-def missing_requirements(report: Mapping[str, Any], env: LabEnv) -> list[dict[str, Any]]:
-    """The failed doctor checks that ``env`` needs to run on real solvers.
+def missing_requirements(
+    report: Mapping[str, Any], env: LabEnv, kwargs: Mapping[str, Any] | None = None
+) -> list[dict[str, Any]]:
+    """The failed doctor checks that ``env``, made with ``kwargs``, needs on real solvers.
 
     Every failed *required* check counts, plus the checks the env itself needs (its lab
-    card's ``solver_checks``, a check counting when its lower-case name starts with one
-    of them): the doctor marks only Python and pyprecice as required for everyone.
+    card's ``solver_checks``, or the ``solver_checks_with`` entry that ``kwargs`` match: a
+    flap whose ``solid="fenics"`` needs FEniCS, not deal.II; a check counting when its
+    lower-case name starts with one of them): the doctor marks only Python and pyprecice
+    as required for everyone.
     """
-    needs = tuple(n.lower() for n in env.solver_checks) or DEFAULT_CHECKS
+    needs = tuple(n.lower() for n in env.checks_for(kwargs)) or DEFAULT_CHECKS
     missing = []
     for check in report["checks"]:
         if check["ok"]:
@@ -68,8 +72,10 @@ def require_solvers(
     report: Mapping[str, Any] | None = None,
     *,
     verbose: bool = True,
+    kwargs: Mapping[str, Any] | None = None,
 ) -> int:
-    """0 when this machine can run ``env`` on real solvers; else explain and return 1.
+    """0 when this machine can run ``env`` (made with ``kwargs``) on real solvers; else
+    explain and return 1.
 
     ``verbose`` (``--require-solvers``) prints the whole doctor report; otherwise one line
     names what is missing and suggests ``--double``: without solvers an environment would
@@ -79,7 +85,7 @@ def require_solvers(
         from gymprecice.cli import doctor_report
 
         report = doctor_report()
-    missing = missing_requirements(report, env)
+    missing = missing_requirements(report, env, kwargs)
     if not missing:
         return 0
     names = missing_names(missing)

@@ -69,6 +69,7 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice_lab.lab_env import LabEnv, LabEnvError, find_lab_env, lab_envs
+from gymprecice_lab.shared import per_row
 
 __all__ = [
     "METADATA_NAME",
@@ -414,12 +415,16 @@ def check_policy_env(
     import numpy as np
 
     obs, want = tuple(env.observation_space.shape), tuple(model.observation_space.shape)
+    act, want_act = tuple(env.action_space.shape), tuple(model.action_space.shape)
+    if per_row(want, obs) and per_row(want_act, act):
+        # a shared policy (train --shared-policy) acts on each agent's row of its joint env
+        obs, act = obs[1:], act[1:]
     if obs != want:
         raise PolicyError(
             f"{policy.label} takes observations of shape {want}, {env_name} gives {obs}; "
             "it cannot run there"
         )
-    act, want = tuple(env.action_space.shape), tuple(model.action_space.shape)
+    want = want_act
     if act != want:
         raise PolicyError(
             f"{policy.label} gives actions of shape {want}, {env_name} takes {act}; "

@@ -54,6 +54,7 @@ from gymprecice_lab.feedback import FeedbackController, own_law_grid
 from gymprecice_lab.lab_env import LabEnv, LabEnvError, find_lab_env
 from gymprecice_lab.manifest import write_manifest
 from gymprecice_lab.requirements import require_solvers
+from gymprecice_lab.starts import StartsError, describe_starts, held_out_starts
 from gymprecice_lab.train import build_env_kwargs, default_out
 
 __all__ = [
@@ -308,7 +309,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     out = (args.out or default_out(env_info, "sweep")).resolve()
     kwargs = build_env_kwargs(args, env_info, out)
     if not args.double:
-        status = require_solvers(env_info, "sweep", verbose=args.require_solvers)
+        status = require_solvers(env_info, "sweep", verbose=args.require_solvers, kwargs=kwargs)
         if status:
             return status
     box = _action_box(env_info, kwargs)
@@ -394,6 +395,9 @@ def _action_box(env_info: LabEnv, kwargs: dict[str, Any]) -> tuple[float, float]
     probe = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=False)
     try:
         space = probe.action_space
+        held_out_starts(probe)  # a card that declares starts the env does not name
+    except StartsError as exc:
+        raise SystemExit(f"gymprecice sweep: {exc}") from None
     finally:
         probe.close()
     if not isinstance(space, gym.spaces.Box) or not np.all(np.isfinite(space.low)):
@@ -418,8 +422,8 @@ def _run_unfinished(
         (out / job.label / "summary.json").unlink(missing_ok=True)
     workers = min(max(1, int(getattr(args, "workers", 1) or 1)), len(todo))
     print(
-        f"gymprecice sweep: {len(todo)} controller(s) x {args.episodes} held-out start(s) "
-        f"on {workers} worker(s)",
+        f"gymprecice sweep: {len(todo)} controller(s) x "
+        f"{describe_starts(args.episodes, env_info.held_out_starts)} on {workers} worker(s)",
         flush=True,
     )
     spec = {
@@ -536,6 +540,7 @@ def _figure(path: Path, results: list[SweepResult], env_info: LabEnv) -> None:
         right.set_xlabel("frequency (Hz)")
         right.set_ylabel("amplitude (fraction of the half range)")
         fig.colorbar(image, ax=right, label=env_info.objective_label)
+    fig.suptitle(env_info.description, fontsize="medium")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

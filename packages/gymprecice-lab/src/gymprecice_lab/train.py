@@ -58,6 +58,7 @@ from gymprecice_lab.requirements import (
     missing_requirements,
     require_solvers,
 )
+from gymprecice_lab.shared import shared_agents, shared_vec_env
 from gymprecice_lab.training_log import merge_progress, segment_logger
 from gymprecice_lab.wrapping import WrapError, wrap_spec
 
@@ -203,12 +204,15 @@ def train(
     seed: int = 0,
     verbose: int = 0,
     segment: int = 1,
+    agents: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """Train (or resume ``resume``) to ``timesteps`` env steps and return a summary.
 
     ``params`` are resolved hyperparameters (:func:`hyperparams.resolve`). Interruption by
     Ctrl-C, SIGTERM or SIGHUP is caught: the model and a checkpoint are saved and
-    ``result["interrupted"]`` names the signal.
+    ``result["interrupted"]`` names the signal. With ``agents`` (``--shared-policy``) one
+    policy learns from every agent's row (:mod:`gymprecice_lab.shared`): each env step
+    is one learner step per agent, and ``timesteps`` counts those.
     """
     from gymprecice_lab.callbacks import prune_checkpoints, record_checkpoint
     from gymprecice_lab.evaluation_callback import eval_callback
@@ -218,8 +222,10 @@ def train(
     out.mkdir(parents=True, exist_ok=True)
     fns = _env_fns(env, out, env_kwargs, params, n_envs)
     base = _vec_env(fns, vec_env, out / "workers", ray)
-    recorder = _transition_recorder(base, params)
-    vec: Any = recorder or base
+    slots = n_envs * max(1, len(agents))  # learner steps per env step
+    learner = shared_vec_env(base, agents) if agents else base
+    recorder = _transition_recorder(learner, params)
+    vec: Any = recorder or learner
     evaluator: Any = None
     try:
         base.seed(seed)
@@ -228,17 +234,17 @@ def train(
         model.set_logger(segment_logger(out, algo, segment, verbose))
         _attach_ensemble(model, recorder, params, out)
         done_before = int(model.num_timesteps)
-        remaining, target = _steps_to_go(params, n_envs, timesteps, done_before)
-        callbacks = _checkpointing(params, n_envs, checkpoints, checkpoint_every, keep_checkpoints)
+        remaining, target = _steps_to_go(params, slots, timesteps, done_before)
+        callbacks = _checkpointing(params, slots, checkpoints, checkpoint_every, keep_checkpoints)
         if eval_freq:
             evaluator = eval_callback(
-                env, out, env_kwargs, n_envs, eval_freq, n_eval_episodes, seed, normalize
+                env, out, env_kwargs, n_envs, eval_freq, n_eval_episodes, seed, normalize, agents
             )
             callbacks.append(evaluator)
         callbacks += _telemetry_callbacks(base)
         started = time.monotonic()
         if remaining > 0:
-            _announce(env, n_envs, algo, target, out)
+            _announce(env, n_envs, algo, target, out, agents)
             interrupted = _learn(model, remaining, callbacks, out, resume is None, progress_bar)
         else:
             interrupted = None
@@ -264,9 +270,17 @@ def train(
         _close(evaluator, vec)
 
 
-def _announce(env: LabEnv, n_envs: int, algo: str, target: int, out: Path) -> None:
+def _announce(
+    env: LabEnv, n_envs: int, algo: str, target: int, out: Path, agents: tuple[str, ...]
+) -> None:
+    shared = (
+        f", one policy shared by {len(agents)} agents ({', '.join(agents)}: "
+        f"{len(agents)} steps per env step)"
+        if agents
+        else ""
+    )
     print(
-        f"gymprecice train: {env.name}, {n_envs} env(s), {algo.upper()} to "
+        f"gymprecice train: {env.name}, {n_envs} env(s){shared}, {algo.upper()} to "
         f"{target:,} steps; output in {out} (env logs: {out / 'workers'}). The first "
         "reset prepares each case (for OpenFOAM a pre-run to a developed flow, cached "
         "for later runs): minutes on real solvers.",
@@ -529,6 +543,7 @@ def hyperparameters(args: argparse.Namespace, env: LabEnv, out: Path) -> dict[st
         "gamma": args.gamma,
         "net": _net(args.net) if args.net is not None else None,
         "normalize": True if args.normalize else None,
+        hp.SHARED_KEY: True if getattr(args, "shared_policy", False) else None,
     }
     return hp.resolve(args.algo, from_file, flags)
 
@@ -546,17 +561,20 @@ def _refuse_changed_resume(out: Path, params: Mapping[str, Any]) -> None:
         )
 
 
-def _adjust_batch_size(params: dict[str, Any], n_envs: int) -> list[str]:
-    """PPO's mini-batch cannot exceed its rollout buffer: clamp it, say so, record it."""
+def _adjust_batch_size(params: dict[str, Any], slots: int) -> list[str]:
+    """PPO's mini-batch cannot exceed its rollout buffer: clamp it, say so, record it.
+
+    ``slots`` is the learner's steps per env step: ``--n-envs``, times the agents with
+    ``--shared-policy``."""
     if params["algo"] != "ppo":
         return []
-    buffer = int(params["n_steps"]) * n_envs
+    buffer = int(params["n_steps"]) * slots
     if int(params["batch_size"]) <= buffer:
         return []
     note = (
         f"--batch-size {params['batch_size']} is larger than the rollout buffer "
-        f"(--n-steps {params['n_steps']} x --n-envs {n_envs} = {buffer}); training with "
-        f"batch size {buffer}"
+        f"(--n-steps {params['n_steps']} x {slots} learner slots = {buffer}); training "
+        f"with batch size {buffer}"
     )
     params["batch_size"] = buffer
     print(f"gymprecice train: warning: {note}", file=sys.stderr)
@@ -617,12 +635,16 @@ def train_command(args: argparse.Namespace) -> int:
         print(f"gymprecice train: {exc}", file=sys.stderr)
         return 2
     out = (args.out or default_out(env, "train")).resolve()
-    build_env_kwargs(args, env, out)  # usage errors first: they cost nothing to find
+    kwargs = build_env_kwargs(args, env, out)  # usage errors first: they cost nothing to find
     check_device(args.device)
     solvers = solver_versions()
     if not args.double:
         status = require_solvers(
-            env, "train", None if args.require_solvers else solvers, verbose=args.require_solvers
+            env,
+            "train",
+            None if args.require_solvers else solvers,
+            verbose=args.require_solvers,
+            kwargs=kwargs,
         )
         if status:
             return status
@@ -640,7 +662,9 @@ def train_command(args: argparse.Namespace) -> int:
     case_dir = _env_probe(env, kwargs)
     _keep_hyperparameters(args, out, params, resumed=resume is not None)
     used = dict(params)
-    settings = _settings(args, env, used, _adjust_batch_size(used, args.n_envs), kwargs)
+    agents = shared_agents(env, used)
+    slots = args.n_envs * max(1, len(agents))
+    settings = _settings(args, env, used, _adjust_batch_size(used, slots), kwargs)
     seeds = {"seed": args.seed, "env_seeds": [args.seed + i for i in range(args.n_envs)]}
     segments = _previous_segments(out) if resume is not None else []
     record = functools.partial(
@@ -666,6 +690,7 @@ def train_command(args: argparse.Namespace) -> int:
         seed=args.seed,
         verbose=args.verbose,
         segment=len(segments) + 1,
+        agents=agents,
     )
     record(result)
     return _report(result, out)

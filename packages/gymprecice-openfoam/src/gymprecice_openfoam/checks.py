@@ -280,12 +280,54 @@ def _mesh_patch_names(case_dir: Path) -> tuple[Path, list[str]] | None:
         case_dir / "constant" / "polyMesh" / "blockMeshDict",
     ):
         if recipe.is_file():
-            entries = foamio.load(recipe).get("boundary")
-            if not isinstance(entries, list):
+            names = block_mesh_patch_names(foamio.read_bytes(recipe)[1])
+            if names is None:
                 return None  # an old-style or #include'd boundary: blockMesh will tell
-            names = [e[0] for e in entries if isinstance(e, (tuple, list)) and e]
-            return recipe, [str(name) for name in names]
+            return recipe, names
     return None  # a gmsh recipe: the mesh is known once it is converted
+
+
+_COMMENTS = re.compile(rb"/\*.*?\*/|//[^\n]*", re.S)
+_TOKENS = re.compile(rb"[(){};]|[^\s(){};]+")
+
+
+def block_mesh_patch_names(data: bytes) -> list[str] | None:
+    """The patch names of a blockMeshDict's ``boundary`` list, read from its tokens.
+
+    Parsing the whole file with foamlib takes seconds to minutes (its ``blocks`` and
+    face lists), and every env's construction checks its patches; the names need only
+    the nesting of brackets. ``None`` without a top-level ``boundary`` list, or where it
+    holds a directive (``#include``, ...) that only blockMesh expands.
+    """
+    tokens = _TOKENS.findall(_COMMENTS.sub(b" ", data))
+    depth = 0
+    for i, token in enumerate(tokens[:-1]):
+        if token in (b"(", b"{"):
+            depth += 1
+        elif token in (b")", b"}"):
+            depth -= 1
+        elif depth == 0 and token == b"boundary" and tokens[i + 1] == b"(":
+            return _patch_names(tokens, i + 2)
+    return None
+
+
+def _patch_names(tokens: list[bytes], start: int) -> list[str] | None:
+    """The names of the ``name { ... }`` entries of the list that opens before ``start``."""
+    names: list[str] = []
+    depth = 1
+    for i in range(start, len(tokens)):
+        token = tokens[i]
+        if token.startswith((b"#", b"$")):
+            return None
+        if token in (b"(", b"{"):
+            depth += 1
+        elif token in (b")", b"}"):
+            depth -= 1
+            if depth == 0:
+                return names
+        elif depth == 1 and i + 1 < len(tokens) and tokens[i + 1] == b"{":
+            names.append(token.decode())
+    return None  # unbalanced: blockMesh will tell
 
 
 def _patch_problems(case_dir: Path, pdict: PreciceDict) -> list[str]:

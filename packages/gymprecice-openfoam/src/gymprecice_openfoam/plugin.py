@@ -38,6 +38,7 @@ from gymprecice.errors import CaseError, ConfigError
 from gymprecice.fields import Field
 from gymprecice.hookspecs import InstallStep, hookimpl
 from gymprecice.precice_xml import ParticipantSpec
+from gymprecice.sketch import SolverSketch
 from gymprecice.solver import (
     DoctorCheck,
     InterfaceGeometry,
@@ -127,7 +128,12 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
         return None
     case.reset_case(solver)
     # what env.render() draws, written every action; nothing extra when it does not render
-    render_fields.set_field_writes(Path(solver.run_dir), solver.fields, solver.field_interval)
+    render_fields.set_field_writes(
+        Path(solver.run_dir),
+        solver.fields,
+        solver.field_interval,
+        after_adapter=render_fields.after_adapter(solver),
+    )
     return True
 
 
@@ -136,6 +142,15 @@ def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Fiel
     if not _mine(solver):
         return None
     return render_fields.read_field(solver, name, time)
+
+
+@hookimpl
+def gymprecice_sketch_case(solver: SolverContext) -> SolverSketch | None:
+    if not _mine(solver):
+        return None
+    from gymprecice_openfoam.sketch import case_sketch  # only `gymprecice sketch` needs it
+
+    return case_sketch(solver)
 
 
 @hookimpl

@@ -1,28 +1,51 @@
 """The tutorial environments: their Gymnasium ids, classes and lab cards, in one table.
 
-The plugin (``plugin.py``) registers each row with ``register(id, entry_point,
-card=card)``, the public route every environment package takes: ``gymprecice train``,
-``evaluate``, ``benchmark`` and the other lab commands (``gymprecice-lab``) read these
-cards and nothing else of the tutorials. Every field a command reads is written out here
-(the cylinders' shared fields once, in ``_CYLINDER``), also where it equals the card's
-default, so that the table alone says how the lab treats each env. Kept free of plugin machinery and of anything heavy: ``plugin.py`` is loaded on
-every ``import gymprecice``.
+The plugin (``plugin.py``) registers each row of :func:`environments` with ``register(id,
+entry_point, card=card)``, the public route every environment package takes: ``gymprecice
+train``, ``evaluate``, ``benchmark`` and the other lab commands (``gymprecice-lab``) read
+these cards and nothing else of the tutorials. Every field a command reads is written out
+here (the cylinders' shared fields once, in ``cylinder``), also where it equals the card's
+default, so that the table alone says how the lab treats each env.
+
+Kept free of plugin machinery and of anything heavy: ``plugin.py`` is loaded on every
+``import gymprecice``. The table is built by a function, on first use, not when this
+module is imported: building it imports :mod:`gymprecice.card`, and so ``gymprecice``,
+which registers every plugin's envs; were the table built at import, importing this
+module before ``gymprecice`` would meet the plugin asking for a table half built.
+``ENVIRONMENTS`` and ``FAST_CYLINDER_FLOOR`` are still module attributes, built when
+first read.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+import functools
+from typing import TYPE_CHECKING, Any
 
-from gymprecice.card import EnvCard, Reference
+if TYPE_CHECKING:
+    from gymprecice.card import EnvCard, Reference
 
-__all__ = ["ENVIRONMENTS", "FAST_CYLINDER_FLOOR", "POLICIES"]
+#: ENVIRONMENTS and FAST_CYLINDER_FLOOR come from ``__getattr__``, built when first read
+__all__ = [
+    "ENVIRONMENTS",  # noqa: F822
+    "FAST_CYLINDER_FLOOR",  # noqa: F822
+    "POLICIES",
+    "environments",
+    "fast_cylinder_floor",
+]
+
 
 #: the training case of the jet and rotating cylinders (3,580 cells): the uncontrolled mean
 #: drag over 10 s from a held-out start, and the drag of the base flow of the mid-height
 #: cylinder (docs/training.md); settled: after the first 2 s of transient
-FAST_CYLINDER_FLOOR = Reference(
-    metric="Cd", uncontrolled=3.2195, floor=2.9755, settle_time=2.0, label="drag floor"
-)
+@functools.cache
+def fast_cylinder_floor() -> Reference:
+    """The drag floor of the fast cylinders' training case (``FAST_CYLINDER_FLOOR``)."""
+    from gymprecice.card import Reference
+
+    return Reference(
+        metric="Cd", uncontrolled=3.2195, floor=2.9755, settle_time=2.0, label="drag floor"
+    )
+
 
 #: the package folder of the shipped policies (``gymprecice policies``)
 POLICIES = "gymprecice_tutorials:policies"
@@ -33,183 +56,207 @@ _CYLINDER_CHECKS = ("pyprecice", "openfoam", "blockmesh", "decomposepar", "mpiru
 #: the training cases run one solver rank: no decomposePar, no mpirun
 _ONE_RANK_CHECKS = ("pyprecice", "openfoam", "blockmesh")
 _FLAP_CHECKS = ("pyprecice", "openfoam", "deal.ii", "elasticity")
+#: a flap or plate made with ``solid="fenics"`` runs FEniCS instead of deal.II / OpenFOAM
+_FENICS_FLAP = {"solid=fenics": ("pyprecice", "openfoam", "fenics")}
+_FENICS_PLATE = {"solid=fenics": (*_ONE_RANK_CHECKS, "fenics")}
 
-#: what every cylinder's card says alike: its force coefficients, the lift as the signal a
-#: classical law feeds back, the shipped policies, the test double, recipe episodes, 10 s
-#: evaluations and forcing near the shedding frequency (each row adds or overrides)
-_CYLINDER = EnvCard(
-    metrics=("Cd", "Cl"),
-    feedback_signal="Cl",
-    policies=POLICIES,
-    double=True,
-    episode_time=True,
-    rollout_time=10.0,
-    open_loop_frequency=3.0,
-)
 
-#: ``(id, "module:Class", lab card)`` of every tutorial environment
-ENVIRONMENTS: tuple[tuple[str, str, EnvCard], ...] = (
-    (
-        "gymprecice/JetCylinder-v0",
-        "gymprecice_tutorials.jet_cylinder.environment:JetCylinderEnv",
-        replace(
-            _CYLINDER,
-            name="jet-cylinder",
-            description="two synthetic jets on a cylinder at Re = 100 (Rabault et al. 2019)",
-            action_unit="m³/s",
-            action_bound=2.5e-4,
-            solver_checks=_CYLINDER_CHECKS,
-            training_case="jet-cylinder-fast",
+@functools.cache
+def environments() -> tuple[tuple[str, str, EnvCard], ...]:
+    """``(id, "module:Class", lab card)`` of every tutorial environment."""
+    from dataclasses import replace
+
+    from gymprecice.card import EnvCard
+
+    floor = fast_cylinder_floor()
+    # what every cylinder's card says alike: its force coefficients, the lift as the signal a
+    # classical law feeds back, the shipped policies, the test double, recipe episodes, 10 s
+    # evaluations and forcing near the shedding frequency (each row adds or overrides)
+    cylinder = EnvCard(
+        metrics=("Cd", "Cl"),
+        feedback_signal="Cl",
+        policies=POLICIES,
+        double=True,
+        episode_time=True,
+        rollout_time=10.0,
+        open_loop_frequency=3.0,
+    )
+    return (
+        (
+            "gymprecice/JetCylinder-v0",
+            "gymprecice_tutorials.jet_cylinder.environment:JetCylinderEnv",
+            replace(
+                cylinder,
+                name="jet-cylinder",
+                description="two synthetic jets on a cylinder at Re = 100 (Rabault et al. 2019)",
+                action_unit="m³/s",
+                action_bound=2.5e-4,
+                solver_checks=_CYLINDER_CHECKS,
+                training_case="jet-cylinder-fast",
+            ),
         ),
-    ),
-    (
-        "gymprecice/RotatingCylinder-v0",
-        "gymprecice_tutorials.rotating_cylinder.environment:RotatingCylinderEnv",
-        replace(
-            _CYLINDER,
-            name="rotating-cylinder",
-            description="a rotating cylinder at Re = 100, the action is its angular velocity",
-            action_unit="rad/s",
-            action_bound=5.0,
-            solver_checks=_CYLINDER_CHECKS,
-            training_case="rotating-cylinder-fast",
+        (
+            "gymprecice/RotatingCylinder-v0",
+            "gymprecice_tutorials.rotating_cylinder.environment:RotatingCylinderEnv",
+            replace(
+                cylinder,
+                name="rotating-cylinder",
+                description="a rotating cylinder at Re = 100, the action is its angular velocity",
+                action_unit="rad/s",
+                action_bound=5.0,
+                solver_checks=_CYLINDER_CHECKS,
+                training_case="rotating-cylinder-fast",
+            ),
         ),
-    ),
-    (
-        "gymprecice/JetCylinderFast-v0",
-        "gymprecice_tutorials.fast_cases:JetCylinderFastEnv",
-        replace(
-            _CYLINDER,
-            name="jet-cylinder-fast",
-            description="the jet cylinder's training case: coarse mesh, 1 s episodes from "
-            "eight start snapshots, Rabault's reward and jet bound (PPO reaches 95 % of its "
-            "drag floor in minutes on 2 cores: docs/benchmark.md)",
-            held_out_starts=True,
-            reference=FAST_CYLINDER_FLOOR,
-            action_unit="m³/s",
-            action_bound=2.5e-5,
-            solver_checks=_ONE_RANK_CHECKS,
+        (
+            "gymprecice/JetCylinderFast-v0",
+            "gymprecice_tutorials.fast_cases:JetCylinderFastEnv",
+            replace(
+                cylinder,
+                name="jet-cylinder-fast",
+                description="the jet cylinder's training case: coarse mesh, 1 s episodes from "
+                "eight start snapshots, Rabault's reward and jet bound (PPO reaches 95 % of its "
+                "drag floor in minutes on 2 cores: docs/benchmark.md)",
+                held_out_starts=True,
+                reference=floor,
+                action_unit="m³/s",
+                action_bound=2.5e-5,
+                solver_checks=_ONE_RANK_CHECKS,
+            ),
         ),
-    ),
-    (
-        "gymprecice/RotatingCylinderFast-v0",
-        "gymprecice_tutorials.fast_cases:RotatingCylinderFastEnv",
-        replace(
-            _CYLINDER,
-            name="rotating-cylinder-fast",
-            description="the rotating cylinder on the jet cylinder's training case",
-            held_out_starts=True,
-            reference=FAST_CYLINDER_FLOOR,
-            action_unit="rad/s",
-            action_bound=2.0,
-            solver_checks=_ONE_RANK_CHECKS,
+        (
+            "gymprecice/RotatingCylinderFast-v0",
+            "gymprecice_tutorials.fast_cases:RotatingCylinderFastEnv",
+            replace(
+                cylinder,
+                name="rotating-cylinder-fast",
+                description="the rotating cylinder on the jet cylinder's training case",
+                held_out_starts=True,
+                reference=floor,
+                action_unit="rad/s",
+                action_bound=2.0,
+                solver_checks=_ONE_RANK_CHECKS,
+            ),
         ),
-    ),
-    (
-        "gymprecice/Quickstart-v0",
-        "gymprecice_tutorials.quickstart.environment:QuickstartEnv",
-        replace(
-            _CYLINDER,
-            name="quickstart",
-            description="the jet cylinder on a coarse mesh with short episodes (minutes on "
-            "2 cores)",
-            rollout_time=2.0,
-            action_unit="m³/s",
-            action_bound=2.5e-4,
-            solver_checks=_ONE_RANK_CHECKS,
+        (
+            "gymprecice/Quickstart-v0",
+            "gymprecice_tutorials.quickstart.environment:QuickstartEnv",
+            replace(
+                cylinder,
+                name="quickstart",
+                description="the jet cylinder on a coarse mesh with short episodes (minutes on "
+                "2 cores)",
+                rollout_time=2.0,
+                action_unit="m³/s",
+                action_bound=2.5e-4,
+                solver_checks=_ONE_RANK_CHECKS,
+            ),
         ),
-    ),
-    (
-        "gymprecice/PerpendicularFlap-v0",
-        "gymprecice_tutorials.perpendicular_flap.environment:PerpendicularFlapEnv",
-        EnvCard(
-            name="perpendicular-flap",
-            description="an elastic flap in a channel (OpenFOAM + deal.II or FEniCS FSI), "
-            "the action steers the inflow",
-            # a jet as tall as the inlet is the packaged case's reference inflow, whatever
-            # the action (the action space shrinks to the one centre, 2 m)
-            uncontrolled={"jet_height": 4.0},
-            policies=POLICIES,
-            open_loop_frequency=0.5,
-            action_unit="m",
-            solver_checks=_FLAP_CHECKS,
-            training_case="perpendicular-flap-fast",
+        (
+            "gymprecice/PerpendicularFlap-v0",
+            "gymprecice_tutorials.perpendicular_flap.environment:PerpendicularFlapEnv",
+            EnvCard(
+                name="perpendicular-flap",
+                description="an elastic flap in a channel (OpenFOAM + deal.II or FEniCS FSI), "
+                "the action steers the inflow",
+                # a jet as tall as the inlet is the packaged case's reference inflow, whatever
+                # the action (the action space shrinks to the one centre, 2 m)
+                uncontrolled={"jet_height": 4.0},
+                policies=POLICIES,
+                open_loop_frequency=0.5,
+                action_unit="m",
+                solver_checks=_FLAP_CHECKS,
+                solver_checks_with=_FENICS_FLAP,
+                training_case="perpendicular-flap-fast",
+            ),
         ),
-    ),
-    (
-        "gymprecice/PerpendicularFlapFast-v0",
-        "gymprecice_tutorials.perpendicular_flap.fast:PerpendicularFlapFastEnv",
-        EnvCard(
-            name="perpendicular-flap-fast",
-            description="the flap's training case: damp the swing after a gust (coarse FSI, "
-            "3 s episodes from gust starts, three held out)",
-            objective="mean_tip_displacement",
-            held_out_starts=True,
-            uncontrolled={"uncontrolled": True},
-            policies=POLICIES,
-            double=True,
-            open_loop_frequency=0.6,
-            action_unit="m",
-            solver_checks=_FLAP_CHECKS,
+        (
+            "gymprecice/PerpendicularFlapFast-v0",
+            "gymprecice_tutorials.perpendicular_flap.fast:PerpendicularFlapFastEnv",
+            EnvCard(
+                name="perpendicular-flap-fast",
+                description="the flap's training case: damp the swing after a gust (coarse FSI, "
+                "3 s episodes from gust starts, three held out)",
+                objective="mean_tip_displacement",
+                held_out_starts=True,
+                uncontrolled={"uncontrolled": True},
+                policies=POLICIES,
+                double=True,
+                open_loop_frequency=0.6,
+                action_unit="m",
+                solver_checks=_FLAP_CHECKS,
+                solver_checks_with=_FENICS_FLAP,
+            ),
         ),
-    ),
-    (
-        "gymprecice/HeatedPlate-v0",
-        "gymprecice_tutorials.heated_plate.environment:HeatedPlateEnv",
-        EnvCard(
-            name="heated-plate",
-            description="conjugate heat transfer: hold the plate's interface temperature "
-            "with a heater (OpenFOAM fluid; OpenFOAM or FEniCS plate)",
-            objective="tracking_error",
-            held_out_starts=True,
-            uncontrolled={"uncontrolled": True},
-            feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
-            policies=POLICIES,
-            shipped_policy="heated-plate-fast",
-            training_case="heated-plate-fast",
-            double=True,
-            open_loop_frequency=0.5,
-            action_unit="K",
-            # the OpenFOAM plate by default; solid="fenics" needs the FEniCS solver env
-            solver_checks=_ONE_RANK_CHECKS,
+        (
+            "gymprecice/HeatedPlate-v0",
+            "gymprecice_tutorials.heated_plate.environment:HeatedPlateEnv",
+            EnvCard(
+                name="heated-plate",
+                description="conjugate heat transfer: hold the plate's interface temperature "
+                "with a heater (OpenFOAM fluid; OpenFOAM or FEniCS plate)",
+                objective="tracking_error",
+                held_out_starts=True,
+                uncontrolled={"uncontrolled": True},
+                feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
+                policies=POLICIES,
+                shipped_policy="heated-plate-fast",
+                training_case="heated-plate-fast",
+                double=True,
+                open_loop_frequency=0.5,
+                action_unit="K",
+                # the OpenFOAM plate by default; solid="fenics" needs the FEniCS solver env
+                solver_checks=_ONE_RANK_CHECKS,
+                solver_checks_with=_FENICS_PLATE,
+            ),
         ),
-    ),
-    (
-        "gymprecice/HeatedPlateFast-v0",
-        "gymprecice_tutorials.heated_plate.fast:HeatedPlateFastEnv",
-        EnvCard(
-            name="heated-plate-fast",
-            description="the heated plate's training case: a coarser fluid and explicit "
-            "coupling, 3.5 s an episode (the task and starts of heated-plate)",
-            objective="tracking_error",
-            held_out_starts=True,
-            uncontrolled={"uncontrolled": True},
-            feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
-            policies=POLICIES,
-            double=True,
-            open_loop_frequency=0.5,
-            action_unit="K",
-            solver_checks=_ONE_RANK_CHECKS,
+        (
+            "gymprecice/HeatedPlateFast-v0",
+            "gymprecice_tutorials.heated_plate.fast:HeatedPlateFastEnv",
+            EnvCard(
+                name="heated-plate-fast",
+                description="the heated plate's training case: a coarser fluid and explicit "
+                "coupling, 3.5 s an episode (the task and starts of heated-plate)",
+                objective="tracking_error",
+                held_out_starts=True,
+                uncontrolled={"uncontrolled": True},
+                feedback_law="gymprecice_tutorials.heated_plate.pid:PID_LAW",
+                policies=POLICIES,
+                double=True,
+                open_loop_frequency=0.5,
+                action_unit="K",
+                solver_checks=_ONE_RANK_CHECKS,
+            ),
         ),
-    ),
-    (
-        # Two flaps, four participants. The PettingZoo env (one agent per flap) is
-        # gymprecice_tutorials.two_flaps.fast.TwoFlapsFastEnv, which Gymnasium cannot make;
-        # this id is its single-controller view (both slots, both flaps' mean), what the
-        # single-agent lab commands can run and a shared policy is compared with.
-        "gymprecice/TwoFlapsFast-v0",
-        "gymprecice_tutorials.two_flaps.fast:TwoFlapsJointEnv",
-        EnvCard(
-            name="two-flaps-fast",
-            description="two flaps in one channel (OpenFOAM + two deal.II solids), one floor "
-            "slot each: damp both after a gust; one controller for both slots",
-            objective="mean_tip_displacement",
-            held_out_starts=True,
-            uncontrolled={"uncontrolled": True},
-            double=True,
-            open_loop_frequency=0.6,
-            action_unit="x 10 m/s",
-            solver_checks=_FLAP_CHECKS,
+        (
+            # Two flaps, four participants. The PettingZoo env (one agent per flap) is
+            # gymprecice_tutorials.two_flaps.fast.TwoFlapsFastEnv, which Gymnasium cannot make;
+            # this id is its single-controller view (both slots, both flaps' mean), what the
+            # single-agent lab commands can run and a shared policy is compared with.
+            "gymprecice/TwoFlapsFast-v0",
+            "gymprecice_tutorials.two_flaps.fast:TwoFlapsJointEnv",
+            EnvCard(
+                name="two-flaps-fast",
+                description="two flaps in one channel (OpenFOAM + two deal.II solids), one floor "
+                "slot each: damp both after a gust; one controller for both slots, or one "
+                "policy both flaps share (train --shared-policy)",
+                objective="mean_tip_displacement",
+                held_out_starts=True,
+                uncontrolled={"uncontrolled": True},
+                double=True,
+                open_loop_frequency=0.6,
+                action_unit="x 10 m/s",
+                solver_checks=_FLAP_CHECKS,
+                agents=("upstream", "downstream"),
+            ),
         ),
-    ),
-)
+    )
+
+
+def __getattr__(name: str) -> Any:
+    """``ENVIRONMENTS`` and ``FAST_CYLINDER_FLOOR``, built on first use."""
+    if name == "ENVIRONMENTS":
+        return environments()
+    if name == "FAST_CYLINDER_FLOOR":
+        return fast_cylinder_floor()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -4,19 +4,29 @@ Loaded through the ``gymprecice`` entry point on every ``import gymprecice``, so
 stay light: environment classes are named by ``"module:Class"`` strings (Gymnasium imports
 them only in ``make``). The lab's commands (``gymprecice train``, ``evaluate``, ...) come
 from ``gymprecice-lab`` (the ``train`` extra), which reads the cards registered here.
+
+Nothing here imports ``gymprecice`` when the module is imported, and the table is built
+inside the hook: whichever module a program imports first (this one, the table, an env
+class or ``gymprecice``), the hook runs once ``gymprecice`` registers its plugins and finds
+everything it needs whole. (Importing ``gymprecice.hookspecs`` here would register the
+plugins while this module is half imported, its hook not yet defined.)
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
-from gymprecice.hookspecs import hookimpl
-from gymprecice_tutorials.environments import ENVIRONMENTS
+import pluggy
 
 __all__ = ["gymprecice_register_environments"]
+
+#: ``gymprecice.hookspecs.hookimpl``: the same marker, made without importing gymprecice
+hookimpl = pluggy.HookimplMarker("gymprecice")
 
 
 @hookimpl
 def gymprecice_register_environments(register: Callable[..., None]) -> None:
-    for env_id, entry_point, card in ENVIRONMENTS:
+    from gymprecice_tutorials.environments import environments
+
+    for env_id, entry_point, card in environments():
         register(env_id, entry_point, card=card)

@@ -17,7 +17,9 @@ counterpart of :class:`~gymprecice.core.Adapter`, over one coupled run:
 :class:`JointEnv` shows all agents as one ``gymnasium.Env`` (stacked arrays), so the
 fault-tolerant vector envs run a multi-agent env with their failure budget;
 :class:`gymprecice.multiagent.sb3.SharedPolicyVecEnv` turns those back into one slot per
-agent for parameter sharing with Stable-Baselines3.
+agent for parameter sharing with Stable-Baselines3. :mod:`gymprecice.multiagent.rllib`
+registers a multi-agent env for RLlib's multi-agent API, one policy shared by every agent
+or one per agent.
 """
 
 from __future__ import annotations

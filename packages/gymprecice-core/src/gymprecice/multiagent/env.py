@@ -16,13 +16,18 @@ answered by the multi-agent env, which splits and joins per agent:
   since its last read: a second agent reading it would find nothing) and because rewards
   in flow control mostly share a global term (the drag, a total displacement) that is
   computed once.
+
+Rendering is the engine's (``render_mode="rgb_array"``, :attr:`~MultiAgentAdapter.render_fields`):
+one frame of every participant's fields, with every agent's actuator drawn by
+:meth:`~MultiAgentAdapter._render_overlay`; the solvers write what a frame needs only when
+the env renders.
 """
 
 from __future__ import annotations
 
 import math
 import weakref
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -40,6 +45,8 @@ from gymprecice.config import GymPreciceConfig
 from gymprecice.core import Adapter, DataDict, DataRef
 from gymprecice.divergence import checked_penalty
 from gymprecice.errors import ConfigError
+from gymprecice.fields import Overlay
+from gymprecice.frames import checked_render_mode, field_requests
 from gymprecice.multiagent.agents import AgentData, resolve_agents
 from gymprecice.returned_values import find_written, refuse_non_finite
 from gymprecice.solver import InterfaceGeometry, OutputReader
@@ -67,10 +74,23 @@ class MultiAgentAdapter(ParallelEnv):
     ``self.observation_spaces`` (one Box action space per agent) in ``__init__`` after
     ``super().__init__(options, idx)``, and writes :meth:`_get_agent_action`,
     :meth:`_get_observations` and :meth:`_get_rewards`. The constructor's arguments are
-    the :class:`~gymprecice.core.Adapter`'s.
+    the :class:`~gymprecice.core.Adapter`'s, ``render_mode`` included: with
+    ``render_mode="rgb_array"``, :meth:`render` returns the frame of every participant's
+    :attr:`render_fields`, as the Adapter's does.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"name": "gymprecice-multiagent", "render_modes": []}
+    #: ``render_mode="rgb_array"``: ``render()`` draws :attr:`render_fields`, one frame per
+    #: action at ``render_fps``
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "gymprecice-multiagent",
+        "render_modes": ["rgb_array"],
+        "render_fps": 4,
+    }
+    #: The fields ``render()`` draws, ``{solver name: field name or names}``, as the
+    #: Adapter's :attr:`~gymprecice.core.Adapter.render_fields` (the first drawn below).
+    render_fields: Mapping[str, str | Sequence[str]] = {}
+    #: A frame's ``(width, height)`` in pixels, as the Adapter's
+    render_size = Adapter.render_size
     #: agent name -> the controller's write data it drives (``"Data-interface"`` keys or
     #: interface names); every write data belongs to exactly one agent
     agent_data: ClassVar[AgentData] = {}
@@ -85,13 +105,16 @@ class MultiAgentAdapter(ParallelEnv):
         *,
         run_root: str | Path | None = None,
         case_dir: str | Path | None = None,
+        render_mode: str | None = None,
     ) -> None:
-        self.render_mode: str | None = None
+        self.render_mode: str | None = checked_render_mode(render_mode, self.metadata, type(self))
         self.agents: list[str] = []
         self.possible_agents: list[str] = []
         self.observation_spaces: dict[str, gym.Space] = {}
         self.action_spaces: dict[str, gym.Space] = {}
-        self._engine = _Engine(self, options, idx, run_root=run_root, case_dir=case_dir)
+        self._engine = _Engine(
+            self, options, idx, run_root=run_root, case_dir=case_dir, render_mode=self.render_mode
+        )
         owner = f"{type(self).__module__}.{type(self).__qualname__}.agent_data"
         try:
             self._agent_refs = resolve_agents(
@@ -137,6 +160,22 @@ class MultiAgentAdapter(ParallelEnv):
     def _close_external_resources(self) -> None:
         """Release files or handles the env itself opened (called at reset and close)."""
 
+    def _render_overlay(self) -> Overlay | None:
+        """Every agent's actuator state drawn over the fields; override to draw your own.
+
+        Default: each agent's action (:attr:`last_actions`) as a line of text. Coordinates
+        of arrows and markers are the fields' (the solvers' mesh coordinates).
+        """
+        actions = self.last_actions
+        if not actions:
+            return None
+        return Overlay(
+            text=[
+                f"{agent}: {np.round(np.asarray(value, dtype=float).ravel(), 6).tolist()}"
+                for agent, value in actions.items()
+            ]
+        )
+
     # -- PettingZoo API --------------------------------------------------------------------
     def observation_space(self, agent: str) -> gym.Space:
         return self._space(self.observation_spaces, "observation_spaces", agent)
@@ -149,6 +188,8 @@ class MultiAgentAdapter(ParallelEnv):
     ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
         self.agents = []
         self._layout()
+        # render_fields checked here, so that a mistake names this class, not the engine
+        field_requests(type(self), self.render_mode, self.render_fields, self.config)
         self.agents = list(self.possible_agents)
         try:
             obs, info = self._engine.reset(seed=seed, options=options)
@@ -206,7 +247,20 @@ class MultiAgentAdapter(ParallelEnv):
         self.agents = []
         self._engine.close()
 
-    def render(self) -> Any:
+    def render(self) -> np.ndarray | None:
+        """The physics at the current step as an ``(H, W, 3)`` uint8 frame (``rgb_array``).
+
+        Every field of :attr:`render_fields` is read from its solver's plugin at the
+        current coupling time and drawn in one frame, every agent's actuator
+        (:meth:`_render_overlay`) on top. Without ``render_mode`` this returns ``None``
+        with a warning, as PettingZoo's and Gymnasium's envs do.
+        """
+        if self.render_mode is None:
+            gym.logger.warn(
+                f"{self._who()}.render() called without a render_mode; make the env with "
+                'render_mode="rgb_array"'
+            )
+            return None
         return self._engine.render()
 
     # -- the Adapter's documented API, for the user's methods --------------------------------
@@ -263,6 +317,17 @@ class MultiAgentAdapter(ParallelEnv):
     @property
     def read_var_list(self) -> list[DataRef]:
         return self._engine.read_var_list
+
+    @property
+    def last_actions(self) -> dict[str, np.ndarray]:
+        """The action each agent's actuator holds: its last one (a done agent's too), the
+        initial action after ``reset()``; ``{}`` before the first reset."""
+        if not self._slots or len(self._held) != self._engine.action_space.shape[0]:
+            return {}
+        return {
+            agent: self._held[slot.start : slot.stop].reshape(slot.shape).copy()
+            for agent, slot in self._slots.items()
+        }
 
     @property
     def agent_write_data(self) -> dict[str, list[DataRef]]:
@@ -499,6 +564,7 @@ class _Engine(Adapter):
 
     def __init__(self, owner: MultiAgentAdapter, *args: Any, **kwargs: Any) -> None:
         self._owner_ref = weakref.ref(owner)
+        self.metadata = owner.metadata  # the render modes the owner supports and checked
         super().__init__(*args, **kwargs)
         if self.config.model.environment.divergence_penalty is None:
             cls = type(owner)
@@ -598,3 +664,15 @@ class _Engine(Adapter):
         owner = self._owner_ref()
         if owner is not None:
             owner._close_external_resources()
+
+    # -- rendering: the owner's fields, frame size and overlay
+    @property
+    def render_fields(self) -> Mapping[str, str | Sequence[str]]:  # type: ignore[override]
+        return self._owner().render_fields
+
+    @property
+    def render_size(self) -> tuple[int, int]:  # type: ignore[override]
+        return self._owner().render_size
+
+    def _render_overlay(self) -> Overlay | None:
+        return self._owner()._render_overlay()

@@ -15,6 +15,10 @@ The agents must be alike: the same Box observation space and the same Box action
 before the episode ends (its own termination) gets zeros as observation and reward until
 the episode ends, and its part of the action is ignored (its actuator holds its last
 action), as PettingZoo's and SuperSuit's "black death" does.
+
+Rendering is the multi-agent env's: a joint env has the ``render_mode`` its env was made
+with, and ``render()`` returns that env's frame (every participant, every agent's
+actuator), so Gymnasium's ``RecordVideo`` records it.
 """
 
 from __future__ import annotations
@@ -39,7 +43,12 @@ class JointEnv(gym.Env):
     got and how it ended) besides the engine's ``time``, ``timing`` and ``diverged``.
     The episode is terminated when every agent terminated, truncated when it ended
     otherwise (the end time, a divergence counts as termination for every agent).
+    ``render_mode``, ``metadata`` (``render_fps``) and ``render()`` are ``env``'s.
     """
+
+    #: what a subclass that builds its env from keywords (``render_mode`` among them)
+    #: supports, for ``gymnasium.make``; an instance's metadata is its env's
+    metadata: dict[str, Any] = dict(MultiAgentAdapter.metadata)
 
     def __init__(self, env: MultiAgentAdapter) -> None:
         super().__init__()
@@ -60,6 +69,7 @@ class JointEnv(gym.Env):
         self.observation_space = _stacked(obs[0], len(self.agents))
         self.action_space = _stacked(act[0], len(self.agents))
         self.metadata = dict(env.metadata)
+        self.render_mode = env.render_mode
         self._zero_obs = np.zeros(obs[0].shape, dtype=obs[0].dtype)
         self._ended: dict[str, str] = {}
 
@@ -101,6 +111,15 @@ class JointEnv(gym.Env):
         terminated = over and all(state == "terminated" for state in self._ended.values())
         reward = float(np.mean([rewards[a] for a in live]))
         return self._stack(obs), reward, terminated, over and not terminated, info
+
+    @property
+    def render_size(self) -> tuple[int, int]:
+        """The multi-agent env's frame size ``(width, height)``."""
+        return self.env.render_size
+
+    def render(self) -> np.ndarray | None:
+        """The multi-agent env's frame (``None`` with a warning without ``render_mode``)."""
+        return self.env.render()
 
     def close(self) -> None:
         self.env.close()

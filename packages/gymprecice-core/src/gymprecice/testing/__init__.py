@@ -5,7 +5,8 @@ let every test couple real processes anyway:
 
 * :mod:`gymprecice.testing.fake_precice` - a drop-in for ``import precice`` (pyprecice v3):
   same API, same protocol checks and messages, same failure mode (a participant whose
-  partner died blocks forever instead of raising). Select it with
+  partner died blocks instead of raising; after ``PARTNER_LOSS`` seconds, 5, it gives up
+  with preCICE's error, so that no solver outlives its controller). Select it with
   ``"precice": {"library": "gymprecice.testing.fake_precice"}`` in gymprecice-config.json
   or ``GYMPRECICE_PRECICE_LIBRARY=gymprecice.testing.fake_precice``. Every participant of a
   run must use the same library: core exports the env's as ``GYMPRECICE_PRECICE_LIBRARY`` to

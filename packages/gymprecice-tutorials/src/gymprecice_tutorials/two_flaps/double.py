@@ -19,7 +19,11 @@ explicit coupling scheme with the controller:
   rest, so the first window's load sets it swinging as the impulsive start does;
 * it writes its solid's watch-point log ``precice-<participant>-watchpoint-Flap-Tip.log``
   in preCICE's format (the real solid's columns, ``Displacement-Upstream0`` ...), one row
-  at time 0, then one per completed window, so the env's code runs unchanged.
+  at time 0, then one per completed window, so the env's code runs unchanged;
+* when the env renders, each hands over its flap's ``displacement`` (the flap as a grid
+  bent as a cantilever, its tip at the oscillator's ``dx``), and the upstream one also a
+  stand-in fluid ``U`` of the whole channel: a 5 m/s inflow slowed behind the flaps,
+  faster over their tips, a wake that sways with its flap, and its slot's jet.
 
 It is a test fixture with the shape of the real dynamics (two lightly damped swings that a
 gust sets off and a constant slot only re-centres), not a solver: the flaps do not feel
@@ -37,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from gymprecice.fields import Field, grid_points
 from gymprecice.precice_xml import PreciceConfig
 from gymprecice.solver import InterfaceGeometry
 from gymprecice.watchpoints import watch_point_file_name
@@ -55,6 +60,10 @@ V_MAX = 10.0
 STATIC = {"upstream": (0.017, 0.006), "downstream": (0.0, 0.004)}
 #: stress (Pa) on the tip per metre of static deflection: the stand-in's tip load
 TIP_STRESS = 2000.0
+#: the channel (m) the stand-in fluid field covers, and its inflow speed (m/s)
+CHANNEL_X = (-3.0, 3.0)
+CHANNEL_HEIGHT = 4.0
+INFLOW = 5.0
 DOUBLE_LIBRARY = "gymprecice.testing.fake_precice"
 _BLOCK_MESH = "fluid-openfoam/system/blockMeshDict"
 
@@ -111,7 +120,7 @@ class SlotFlap(ScriptedFlap):
         self.slot = training_slots()[self.flap.jet]
         self.faces_mesh, self.faces = _mesh(self.flap), self.slot
         self.x0, self.gain = STATIC[name]
-        self.state = {"x": 0.0, "v": 0.0, "static": self.x0}
+        self.state = {"x": 0.0, "v": 0.0, "static": self.x0, "slot": 0.0}
         self._log: Path | None = None
         if opt.get("outputs"):
             # Start the episode's log now, before the coupling is initialised: the env
@@ -126,6 +135,7 @@ class SlotFlap(ScriptedFlap):
                 velocity = np.asarray(values, dtype=float).reshape(len(self.slot.coordinates), -1)
                 areas = np.asarray(self.slot.areas, dtype=float)
                 mean = float(velocity[:, 1] @ areas / areas.sum())
+                s["slot"] = mean
                 s["static"] = self.x0 + self.gain * mean / V_MAX
         swing(s, self.omega, self.zeta, dt)
 
@@ -133,6 +143,48 @@ class SlotFlap(ScriptedFlap):
         """``(dx, dy, sx, sy)`` of the tip now (a cantilever's tip sinks as it bends)."""
         dx = self.state["x"]
         return dx, -0.6 * dx * dx, TIP_STRESS * self.state["static"], 0.0
+
+    # -- fields for env.render(): the bent flap, and the upstream one's stand-in fluid
+    def field_names(self) -> tuple[str, ...]:
+        if self.flap is FLAPS[0]:
+            return ("U", "displacement")
+        return ("displacement",)
+
+    def field(self, name: str, t: float) -> Field | None:
+        if name == "displacement":
+            x = self.flap.x
+            points, triangles = grid_points([x - 0.05, x + 0.05], np.linspace(0.0, 1.0, 21))
+            dx = self.state["x"] * points[:, 1] ** 2  # a cantilever's shape, tip at dx
+            disp = np.column_stack([dx, -0.6 * dx * dx])
+            return Field(
+                name, t, points, disp, triangles=triangles, displacement=disp, label="|d| [m]"
+            )
+        if name == "U" and "U" in self.field_names():
+            return self._fluid(t)
+        return None
+
+    def _fluid(self, t: float) -> Field:
+        """The stand-in fluid: the shape of the real flow, driven by this flap's state."""
+        points, triangles = grid_points(
+            np.linspace(*CHANNEL_X, 91), np.linspace(0.0, CHANNEL_HEIGHT, 61)
+        )
+        x, y = points[:, 0], points[:, 1]
+        u = INFLOW * np.tanh(y / 0.3)  # the floor's boundary layer
+        w = np.zeros_like(u)
+        below_tip = 1.0 / (1.0 + np.exp((y - 1.05) / 0.08))
+        sway = self.omega * t
+        for flap in FLAPS:
+            behind = np.clip((x - flap.x) / 0.3, 0.0, 1.0) * np.exp(-np.maximum(x - flap.x, 0) / 2)
+            behind /= 1.0 + np.exp((y - 1.4) / 0.2)  # the wake: below the tips' height
+            slowed = 0.8 * below_tip * np.exp(-(((x - flap.x) / 0.25) ** 2)) + 0.6 * behind
+            u *= np.clip(1.0 - slowed, 0.05, None)
+            u += 3.0 * np.exp(-(((x - flap.x) / 0.5) ** 2) - ((y - 1.25) / 0.25) ** 2)
+            wake = np.sin(2.0 * np.pi * (x - flap.x) / 1.5 - sway) * behind
+            w += (1.0 + 20.0 * abs(self.state["x"])) * wake * np.exp(-(((y - 1.0) / 0.3) ** 2))
+        jet = self.flap.jet_x
+        w += self.state["slot"] * np.exp(-(((x - jet) / 0.15) ** 2) - y / 0.4)
+        values = np.column_stack([u, w])
+        return Field("U", t, points, values, triangles=triangles, label="|U| (test double)")
 
     # -- preCICE's watch-point log (gymprecice.watchpoints describes the format)
     def _start_log(self, directory: Path) -> Path:

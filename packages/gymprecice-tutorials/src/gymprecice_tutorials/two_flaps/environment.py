@@ -29,6 +29,9 @@ which feels it mainly through the upstream flap's wake.
 * **Reward** per agent: ``-mean |d|`` of its own tip over the time windows of the step
   (metres), as the single flap.
 * **Episode end**: every agent truncated at the coupling's ``max-time``; no terminal state.
+* **Rendering** (``render_mode="rgb_array"``): the fluid's speed and both flaps, bent by
+  their solids' displacement, in one frame; each slot's setting as an arrow (blowing up
+  out of the floor, suction down into it, its length the slot's mean velocity) and as text.
 
 The observations wait for each solid's watch-point row of the current time
 (``watch_timeout`` seconds at most), which keeps the env in step with the physics: the
@@ -46,6 +49,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
+from gymprecice.fields import Overlay
 from gymprecice.multiagent import MultiAgentAdapter
 from gymprecice_tutorials.perpendicular_flap.environment import jet_profile
 from gymprecice_tutorials.two_flaps import CASE_DIR
@@ -55,6 +59,9 @@ __all__ = ["FLAPS", "JET_WIDTH", "Flap", "TwoFlapsEnv", "slot_velocity"]
 CONFIG_FILE = CASE_DIR / "gymprecice-config.json"
 #: width (m) of each floor slot
 JET_WIDTH = 0.2
+#: length (m) of a slot's arrow in a frame per m/s of its mean velocity (10 m/s: 0.5 m,
+#: half a flap's height)
+ARROW_PER_VELOCITY = 0.05
 
 
 @dataclass(frozen=True)
@@ -107,6 +114,13 @@ class TwoFlapsEnv(MultiAgentAdapter):
     agent_data: ClassVar[dict[str, list[str]]] = {flap.agent: [flap.jet] for flap in FLAPS}
     #: the watch point both solids declare in ``precice-config.xml``
     WATCH_POINT = "Flap-Tip"
+    #: ``render_mode="rgb_array"``: the fluid and both bent flaps, one frame per action
+    #: (0.1 s of flow)
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "two_flaps",
+        "render_modes": ["rgb_array"],
+        "render_fps": 10,
+    }
 
     def __init__(
         self,
@@ -135,6 +149,36 @@ class TwoFlapsEnv(MultiAgentAdapter):
         self._step_rows: dict[str, np.ndarray] = {}
         #: each agent's slot mean velocity (m/s) in the last window written
         self.jet_velocity = dict.fromkeys(self.possible_agents, 0.0)
+
+    # -- rendering ---------------------------------------------------------------------------
+    @property
+    def render_fields(self) -> dict[str, tuple[str, ...]]:  # type: ignore[override]
+        """The fluid's speed, then each flap's displacement, drawn on the bent flap.
+
+        On the real case the fluid's ``U`` comes from OpenFOAM and each solid's
+        ``displacement`` from its deal.II adapter's snapshots; on the test double the
+        upstream scripted flap hands over a stand-in fluid and both hand over their flap.
+        """
+        flaps = {flap.solver: ("displacement",) for flap in FLAPS}
+        if "fluid" in self.config.solvers:
+            return {"fluid": ("U",), **flaps}
+        first = FLAPS[0].solver
+        return {first: ("U", "displacement"), **{k: v for k, v in flaps.items() if k != first}}
+
+    def _render_overlay(self) -> Overlay:
+        """Each slot's setting: an arrow out of (blowing) or into (suction) the floor at
+        the slot, its length the slot's mean velocity, and a line of text per slot."""
+        arrows, text = [], []
+        for flap in FLAPS:
+            velocity = self.jet_velocity[flap.agent]
+            length = ARROW_PER_VELOCITY * velocity
+            if velocity > 0:
+                arrows.append((flap.jet_x, 0.0, 0.0, length))
+            elif velocity < 0:
+                arrows.append((flap.jet_x, -length, 0.0, length))
+            what = "blowing" if velocity > 0 else "suction" if velocity < 0 else "closed"
+            text.append(f"{flap.agent:>10} slot {velocity:+5.1f} m/s {what}")
+        return Overlay(text=text, arrows=arrows)
 
     # -- the user methods --------------------------------------------------------------------
     def _get_agent_action(self, agent: str, action: np.ndarray, write_var_list: list) -> dict:

@@ -234,8 +234,12 @@ class TwoFlapsJointEnv(JointEnv):
     action ``(2, 1)``, one row per flap (upstream first); reward the mean of the two
     agents' rewards. ``info["metrics"]`` holds ``mean_tip_displacement``, the mean of
     both flaps' (the negated reward), and each flap's own; ``info["action"]`` both slots'
-    mean velocities (m/s). Keyword arguments are :class:`TwoFlapsFastEnv`'s.
+    mean velocities (m/s). Keyword arguments are :class:`TwoFlapsFastEnv`'s
+    (``render_mode`` among them: the frame is the multi-agent env's).
     """
+
+    #: what ``gymnasium.make`` and the lab's ``--video`` read before building the env
+    metadata: dict[str, Any] = dict(TwoFlapsFastEnv.metadata)
 
     def __init__(self, options: Any = None, idx: int | None = 0, **kwargs: Any) -> None:
         super().__init__(TwoFlapsFastEnv(options, idx, **kwargs))

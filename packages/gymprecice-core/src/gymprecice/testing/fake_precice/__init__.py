@@ -57,7 +57,13 @@ Modelled (as preCICE 3.4 does it):
   finish one or two more time windows with zero data before it blocks, and can even
   reach the end of the run that way if the partner died in the last windows; the double
   blocks at the first exchange that needs the dead partner. A supervisor should watch
-  the solver processes themselves, not only the coupling.)
+  the solver processes themselves, not only the coupling.) The double blocks for
+  :data:`PARTNER_LOSS` seconds (5) once the partner's connection has closed, time for
+  a supervisor to act, then gives up with preCICE's "... This often means that the
+  other participant exited with an error" :class:`PreciceError`: a solver left on the
+  double when its controller was SIGKILLed ends instead of waiting for hours.
+  ``GYMPRECICE_FAKE_PRECICE_PARTNER_LOSS=hang`` blocks forever, as preCICE does. A
+  partner that is stopped (SIGSTOP) or hangs keeps its connection: the survivor blocks.
 
 Not modelled:
 
@@ -119,6 +125,7 @@ from gymprecice.testing.fake_precice.version import (
 __all__ = [
     "IS_FAKE",
     "MISUSE",
+    "PARTNER_LOSS",
     "PRECICE_VERSION",
     "Participant",
     "PreciceError",
@@ -132,3 +139,11 @@ __all__ = [
 #: with the environment variable ``GYMPRECICE_FAKE_PRECICE_MISUSE``; :func:`.errors.fatal`
 #: reads it from this module at each misuse, so setting it here takes effect at once.
 MISUSE = os.environ.get("GYMPRECICE_FAKE_PRECICE_MISUSE", "raise")
+
+#: What a participant does when a partner's connection closes (the partner was killed,
+#: crashed or exited): wait this many seconds, as preCICE does, then give up with
+#: preCICE's :class:`PreciceError` ("... This often means that the other participant
+#: exited with an error"), so that a solver on the double never outlives its controller
+#: for hours; "hang" waits forever, as preCICE 3.4.1 does. Set it here or with
+#: ``GYMPRECICE_FAKE_PRECICE_PARTNER_LOSS``; read at each loss.
+PARTNER_LOSS = os.environ.get("GYMPRECICE_FAKE_PRECICE_PARTNER_LOSS", "5")

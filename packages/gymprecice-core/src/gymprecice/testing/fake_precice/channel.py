@@ -9,11 +9,11 @@ import struct
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
-from gymprecice.testing.fake_precice.errors import PreciceError, hang_forever
+from gymprecice.testing.fake_precice.errors import PreciceError, partner_gone
 
 
 class Channel:
@@ -29,6 +29,8 @@ class Channel:
         self.sock = sock
         self.local = local
         self.remote = remote
+        #: why the partner is known gone (a later send or receive fails at once)
+        self.lost: str | None = None
 
     def send(self, kind: str, value: Any = None, arrays: Sequence[np.ndarray] = ()) -> None:
         blobs = [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
@@ -38,8 +40,8 @@ class Channel:
         parts = [self._PREFIX.pack(body_len, len(head)), head, *(b.tobytes() for b in blobs)]
         try:
             self.sock.sendall(b"".join(parts))
-        except OSError:
-            hang_forever()
+        except OSError as exc:
+            self._lost("Sending data to", exc.strerror or str(exc))
 
     def recv(self, kind: str) -> tuple[Any, list[np.ndarray]]:
         prefix = self._read(self._PREFIX.size)
@@ -72,12 +74,23 @@ class Channel:
                 k = self.sock.recv_into(view[got:], n - got)
             except InterruptedError:
                 continue
-            except OSError:
-                hang_forever()
+            except OSError as exc:
+                self._lost("Receiving data from", exc.strerror or str(exc))
             if k == 0:  # the partner closed the connection (died or finalized early)
-                hang_forever()
+                self._lost("Receiving data from", "end of file (the connection was closed)")
             got += k
         return buf
+
+    def _lost(self, direction: str, reason: str) -> NoReturn:
+        """The partner is gone: wait as preCICE does, then give up (:func:`partner_gone`);
+        at once when this channel already gave up once (a later call on it)."""
+        if self.lost is not None:
+            raise PreciceError(self.lost)
+        try:
+            partner_gone(direction, self.remote, reason)
+        except PreciceError as exc:
+            self.lost = str(exc)
+            raise
 
     def close(self) -> None:
         with contextlib.suppress(OSError):
