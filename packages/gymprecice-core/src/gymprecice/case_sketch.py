@@ -22,11 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gymprecice.config import GymPreciceConfig
+from gymprecice.config import GymPreciceConfig, pristine_context
 from gymprecice.plugins import get_plugin_manager
 from gymprecice.precice_xml import PreciceConfig
 from gymprecice.sketch import SolverSketch
-from gymprecice.solver import SolverContext
 
 __all__ = ["CaseSketch", "DrawnPatch", "DrawnPoints", "Region", "sketch_case", "solver_sketches"]
 
@@ -86,31 +85,12 @@ class CaseSketch:
         raise KeyError(f"no patch {name!r}; the sketch has {[p.name for p in self.patches]}")
 
 
-def validation_context(config: GymPreciceConfig, name: str) -> SolverContext:
-    """The solver's context as core builds it to validate a case: the pristine directory."""
-    spec = config.solvers[name]
-    source = config.case_dir / spec.path
-    return SolverContext(
-        name=spec.name,
-        kind=spec.kind,
-        run_dir=source,
-        source_dir=source,
-        env_dir=config.case_dir,
-        participant=spec.participant,
-        options=dict(spec.options),
-        config_file=config.file,
-        precice=config.precice,
-        precice_config_file=config.precice_file,
-        precice_library=config.precice_library,
-    )
-
-
 def solver_sketches(config: GymPreciceConfig) -> dict[str, SolverSketch | None]:
     """Each solver's plugin answer (``None``: no plugin sketches that solver)."""
     hook = get_plugin_manager().hook
     answers: dict[str, SolverSketch | None] = {}
     for name in config.solvers:
-        answer = hook.gymprecice_sketch_case(solver=validation_context(config, name))
+        answer = hook.gymprecice_sketch_case(solver=pristine_context(config, name))
         if answer is not None and not isinstance(answer, SolverSketch):
             raise TypeError(
                 f"gymprecice_sketch_case answered {type(answer).__name__} for solver {name!r}; "

@@ -17,12 +17,15 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from gymprecice.errors import ConfigError
 from gymprecice.precice_xml import PreciceConfig, load_precice_config
+
+if TYPE_CHECKING:  # imported when called: loading the config needs no numpy
+    from gymprecice.solver import SolverContext
 
 CONFIG_FILE_NAME = "gymprecice-config.json"
 DEFAULT_LIBRARY = "precice"
@@ -255,6 +258,28 @@ def load_config(
     return config
 
 
+def pristine_context(config: GymPreciceConfig, name: str) -> SolverContext:
+    """Solver ``name``'s context on the pristine case (no run directory yet): what its
+    plugin checks (``gymprecice_validate_case``) and draws (``gymprecice_sketch_case``)."""
+    from gymprecice.solver import SolverContext
+
+    spec = config.solvers[name]
+    source = config.case_dir / spec.path
+    return SolverContext(
+        name=spec.name,
+        kind=spec.kind,
+        run_dir=source,
+        source_dir=source,
+        env_dir=config.case_dir,
+        participant=spec.participant,
+        options=dict(spec.options),
+        config_file=config.file,
+        precice=config.precice,
+        precice_config_file=config.precice_file,
+        precice_library=config.precice_library,
+    )
+
+
 def check_solver_cases(config: GymPreciceConfig) -> None:
     """Ask each solver's plugin to check its pristine case against the preCICE XML.
 
@@ -262,24 +287,10 @@ def check_solver_cases(config: GymPreciceConfig) -> None:
     asking them here makes a mismatch fail at load time with every file named.
     """
     from gymprecice.plugins import get_plugin_manager
-    from gymprecice.solver import SolverContext
 
     hook = get_plugin_manager().hook
     for spec in config.solvers.values():
-        source = config.case_dir / spec.path
-        context = SolverContext(
-            name=spec.name,
-            kind=spec.kind,
-            run_dir=source,
-            source_dir=source,
-            env_dir=config.case_dir,
-            participant=spec.participant,
-            options=dict(spec.options),
-            config_file=config.file,
-            precice=config.precice,
-            precice_config_file=config.precice_file,
-            precice_library=config.precice_library,
-        )
+        context = pristine_context(config, spec.name)
         problems = [
             p for answer in hook.gymprecice_validate_case(solver=context) for p in answer or ()
         ]
