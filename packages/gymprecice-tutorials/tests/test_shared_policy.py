@@ -98,3 +98,12 @@ def test_a_hyperparameter_file_may_ask_for_it_but_only_as_true_or_false(tmp_path
     )
     assert refused.returncode != 0
     assert "shared_policy is true or false" in refused.stderr
+
+
+def test_the_episode_time_of_the_two_flaps_is_set_from_the_command_line(tmp_path: Path) -> None:
+    ran = _cli(
+        tmp_path, "baseline", "two-flaps-fast", "--double", "--episode-time", "0.5", "--out", "b"
+    )
+    assert ran.returncode == 0, ran.stderr
+    episodes = json.loads((tmp_path / "b" / "summary.json").read_text())["episodes"]
+    assert [e["steps"] for e in episodes] == [5]  # 0.5 s of actions of 0.1 s

@@ -244,6 +244,7 @@ def environments() -> tuple[tuple[str, str, EnvCard], ...]:
                 held_out_starts=True,
                 uncontrolled={"uncontrolled": True},
                 double=True,
+                episode_time=True,
                 open_loop_frequency=0.6,
                 action_unit="x 10 m/s",
                 solver_checks=_FLAP_CHECKS,
