@@ -280,6 +280,9 @@ def test_a_shared_policy_trains_with_ppo(case):
         assert model.num_timesteps == 16  # 8 steps of 2 agents
         action, _ = model.predict(venv.reset(), deterministic=True)
         assert action.shape == (2, 1)
+        # beneath the slots, as beneath a VecEnvWrapper: the vector env of joint envs
+        assert isinstance(venv.unwrapped, DummyVecEnv)
+        assert isinstance(venv.unwrapped.envs[0], JointEnv)
     finally:
         venv.close()
 

@@ -211,7 +211,7 @@ def _rollouts() -> list[Command]:
             "run a trained policy deterministically over a long horizon",
             "Run a trained policy (deterministic: its mean action) for whole "
             "episodes and write history.csv, coefficients.csv and summary.json (mean and std "
-            "over the episodes; the %% change against --baseline when given).",
+            "over the episodes; the % change against --baseline when given).",
             (*env, o.POLICY, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.STOCHASTIC, o.BASELINE),
             functools.partial(_run, "evaluate"),
         ),

@@ -306,16 +306,25 @@ def load_policy(
     registered id or short name; ``env_kwargs`` go to the env (e.g. ``double=True``,
     ``episode_time=10``). The vector env rescales actions like training did and, when the
     model was trained with ``--normalize``, normalises observations with the saved
-    statistics (frozen: evaluation does not update them).
+    statistics (frozen: evaluation does not update them). A policy trained
+    ``--shared-policy`` gets the vector env it trained in: one slot per agent of the joint
+    env (:class:`~gymprecice.multiagent.sb3.SharedPolicyVecEnv`), each slot one agent's row.
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+    from gymprecice_lab.shared import per_row
+
     path, _ = find_model(Path(model))
     spec = find_lab_env(env)
+    loaded = load_model(path, device=device)
     venv: Any = DummyVecEnv([lambda: make_env(spec.env_id, idx, env_kwargs)])
+    if per_row(loaded.observation_space.shape, venv.observation_space.shape):
+        from gymprecice.multiagent.sb3 import SharedPolicyVecEnv
+
+        venv = SharedPolicyVecEnv(venv)
     stats = vecnormalize_path(path)
     if stats.is_file():
         venv = VecNormalize.load(str(stats), venv)
         venv.training = False
         venv.norm_reward = False
-    return venv, load_model(path, device=device)
+    return venv, loaded

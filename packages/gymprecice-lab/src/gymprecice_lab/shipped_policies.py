@@ -526,7 +526,10 @@ class PolicyController:
         if self.stats is not None:
             x = self.stats.normalize_obs(x)
         action, _ = self.model.predict(x, deterministic=True)
-        unit = np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0)
+        unit = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        # a shared policy acting on a joint env's rows answers one row per agent: keep
+        # the box's shape, so scalar bounds still broadcast over a flat action
+        unit = unit.reshape(self.low.shape if self.low.size == unit.size > 1 else -1)
         return (self.low + (unit + 1.0) * 0.5 * (self.high - self.low)).astype(np.float32)
 
 
@@ -573,11 +576,13 @@ def ship_policy(
     source = _source(train_dir, checkpoint)
     described = describe_env(env, settings.get("env_kwargs", {}))
     model = load_model(source)
-    obs_shape = list(model.observation_space.shape)
-    if obs_shape != described["observation_shape"]:
+    obs_shape = tuple(model.observation_space.shape)
+    env_shape = tuple(described["observation_shape"])
+    shared = bool(settings.get("hyperparams", {}).get("shared_policy"))
+    if obs_shape != env_shape and not (shared and per_row(obs_shape, env_shape)):
         raise PolicyError(
-            f"{source} takes observations of shape {tuple(obs_shape)}, but its training env "
-            f"{env.name} gives {tuple(described['observation_shape'])}"
+            f"{source} takes observations of shape {obs_shape}, but its training env "
+            f"{env.name} gives {env_shape}"
         )
     stats = vecnormalize_path(source)
     normalize = bool(settings.get("hyperparams", {}).get("normalize"))
@@ -591,6 +596,8 @@ def ship_policy(
         "policy_actions": "in [-1, 1], rescaled onto action_space (gymnasium RescaleAction)",
         "normalize_observations": stats.is_file(),
         "algorithm": settings.get("hyperparams", {}).get("algo"),
+        # a policy trained --shared-policy acts on each agent's row of the joint env
+        **({"shared_by": list(env.card.agents)} if shared else {}),
         "hyperparams": settings.get("hyperparams"),
         "training": _training_record(manifest, train_dir, source, model, file_sha256),
         "evaluation": evaluated,
@@ -755,14 +762,25 @@ def _write_frozen_stats(source: Path, path: Path) -> None:
         pickle.dump(stats, handle)
 
 
-def _command_line(argv: list[str] | None) -> str | None:
+def _command_line(argv: list[str] | None, cwd: str | None = None) -> str | None:
     """The command as typed, without the machine's path to the ``gymprecice`` script (or
-    ``python -m gymprecice``'s ``__main__.py``)."""
+    ``python -m gymprecice``'s ``__main__.py``), and without the machine's directories: an
+    absolute path is written relative to the directory the command ran in (``cwd``), or
+    as its last component when it lies elsewhere (a policy ships to other machines)."""
     import shlex
 
     if not argv:
         return None
-    return shlex.join(["gymprecice", *argv[1:]])
+
+    def portable(arg: str) -> str:
+        if not os.path.isabs(arg):
+            return arg
+        path = Path(arg)
+        if cwd and path.is_relative_to(cwd) and path != Path(cwd):
+            return path.relative_to(cwd).as_posix()
+        return path.name or arg
+
+    return shlex.join(["gymprecice", *(portable(a) for a in argv[1:])])
 
 
 def _training_record(
@@ -778,7 +796,9 @@ def _training_record(
     model_sha = sha(source)
     recorded = result.get("model_sha256")
     return {
-        "command": _command_line(segments[0].get("argv") or manifest.get("argv")),
+        "command": _command_line(
+            segments[0].get("argv") or manifest.get("argv"), manifest.get("cwd")
+        ),
         "segments": len(segments),
         "env_kwargs": kwargs,
         "double": bool(settings.get("double")),
@@ -840,7 +860,7 @@ def _evaluation_record(run: Path, model_sha: str) -> dict[str, Any]:
         )
     kwargs = settings.get("env_kwargs", {})
     return {
-        "command": _command_line(manifest.get("argv")),
+        "command": _command_line(manifest.get("argv"), manifest.get("cwd")),
         "env_id": settings.get("env_id"),
         "episode_time": kwargs.get("episode_time"),
         "episodes": settings.get("episodes"),

@@ -249,6 +249,7 @@ def environments() -> tuple[tuple[str, str, EnvCard], ...]:
                 action_unit="x 10 m/s",
                 solver_checks=_FLAP_CHECKS,
                 agents=("upstream", "downstream"),
+                policies=POLICIES,
             ),
         ),
     )

@@ -110,6 +110,12 @@ class SharedPolicyVecEnv(VecEnv):
                     self.reset_infos[i * n + j] = dict(reset_info)
         return self._slots(obs), rewards.reshape(-1), np.repeat(dones, n), slot_infos
 
+    @property
+    def unwrapped(self) -> VecEnv:
+        """The vector env of joint envs beneath the slots (its ``envs`` are the joint envs),
+        as a ``VecEnvWrapper``'s ``unwrapped`` is the vector env it wraps."""
+        return self.venv.unwrapped
+
     def close(self) -> None:
         self.venv.close()
 
