@@ -28,13 +28,12 @@ import pytest
 
 import gymprecice_tutorials
 from gymprecice_lab.manifest import file_sha256
+from gymprecice_lab.policy_format import PolicyError, read_metadata
+from gymprecice_lab.ship_policy import ship_policy
 from gymprecice_lab.shipped_policies import (
     POLICIES_DIR_ENV,
-    PolicyError,
     load_shipped,
-    read_metadata,
     resolve_policy,
-    ship_policy,
     shipped_policies,
 )
 
@@ -263,7 +262,7 @@ def test_shipping_keeps_what_evaluation_needs_and_the_record(tiny):
 def test_a_shipped_command_names_no_directory_of_the_training_machine():
     """Absolute paths in a recorded command become relative to where it ran, or their
     last component where they lie elsewhere: a policy ships to other machines."""
-    from gymprecice_lab.shipped_policies import _command_line
+    from gymprecice_lab.ship_policy import _command_line
 
     argv = ["/opt/env/bin/gymprecice", "train", "two-flaps-fast", "--out", "/home/u/w/runs/a"]
     assert _command_line(argv, "/home/u/w") == "gymprecice train two-flaps-fast --out runs/a"

@@ -587,6 +587,10 @@ def _run(command: str, args: argparse.Namespace) -> int:
         from gymprecice_lab.plots import plot_command
 
         return plot_command(args)
-    from gymprecice_lab.shipped_policies import list_command, ship_command
+    if command == "ship-policy":
+        from gymprecice_lab.ship_policy import ship_command
 
-    return ship_command(args) if command == "ship-policy" else list_command(args)
+        return ship_command(args)
+    from gymprecice_lab.shipped_policies import list_command
+
+    return list_command(args)

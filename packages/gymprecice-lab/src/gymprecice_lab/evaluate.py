@@ -46,7 +46,8 @@ summary's episodes.
 ``evaluate --policy`` names the policy: a training directory or model file, a policy
 shipped with the package by name, or ``shipped`` (the one shipped for the env). The env
 is built with the action bound the policy was trained with, also on another env (a
-transfer, said in one line); see :mod:`gymprecice_lab.shipped_policies`.
+transfer, said in one line); see :mod:`gymprecice_lab.shipped_policies` and
+:mod:`gymprecice_lab.policy_env`.
 """
 
 from __future__ import annotations
@@ -74,15 +75,10 @@ from gymprecice_lab.envs import (
 from gymprecice_lab.feedback import FeedbackController
 from gymprecice_lab.lab_env import LabEnv, LabEnvError, default_frequency, find_lab_env
 from gymprecice_lab.manifest import file_sha256, read_manifest, write_manifest
+from gymprecice_lab.policy_env import check_policy_env, policy_env_kwargs
+from gymprecice_lab.policy_format import Policy, PolicyError
 from gymprecice_lab.requirements import require_solvers
-from gymprecice_lab.shipped_policies import (
-    Policy,
-    PolicyError,
-    check_policy_env,
-    policy_env_kwargs,
-    resolve_policy,
-    shipped_policies,
-)
+from gymprecice_lab.shipped_policies import resolve_policy, shipped_policies
 from gymprecice_lab.starts import (
     StartsError,
     evaluation_starts,
