@@ -198,6 +198,8 @@ def _monitor(env: gym.Env, monitor_file: str, keywords: tuple[str, ...]) -> gym.
 
     path = Path(monitor_file if monitor_file.endswith(".csv") else f"{monitor_file}.monitor.csv")
     t_start = _header_t_start(path)
+    if t_start is not None:
+        _align_columns(path, ("r", "l", "t", *keywords))
     monitor = Monitor(
         env,
         filename=monitor_file,
@@ -219,6 +221,37 @@ def _header_t_start(path: Path) -> float | None:
         return float(json.loads(first[1:])["t_start"]) if first.startswith("#") else None
     except (ValueError, KeyError, TypeError):
         return None
+
+
+def _align_columns(path: Path, columns: tuple[str, ...]) -> None:
+    """Give a resumed Monitor file the columns this run writes, keeping every value.
+
+    SB3 appends rows in the order of its own columns and never rewrites the header, so a
+    run resumed with other info keywords (a newer gymprecice, another card) would append
+    rows under the wrong names. The file is rewritten (atomically) with this run's columns
+    first, and any column only the old rows have after them: old rows keep all their
+    values, new rows leave the trailing columns empty.
+    """
+    import csv
+    import os
+
+    with path.open(newline="") as handle:
+        first = handle.readline()
+        if not first.startswith("#"):
+            return
+        reader = csv.DictReader(handle)
+        if tuple(reader.fieldnames or ()) == columns:
+            return
+        rows = list(reader)
+        old = tuple(reader.fieldnames or ())
+    fieldnames = [*columns, *(c for c in old if c not in columns)]
+    tmp = path.with_name(f".{path.name}.tmp")
+    with tmp.open("w", newline="\n") as handle:
+        handle.write(first)
+        writer = csv.DictWriter(handle, fieldnames=fieldnames, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(tmp, path)
 
 
 # -- trained models ------------------------------------------------------------------------
