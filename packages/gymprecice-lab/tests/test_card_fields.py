@@ -196,7 +196,7 @@ def test_benchmark_says_what_its_starts_are(tmp_path: Path, capsys, monkeypatch)
 
 
 def test_results_name_the_env_and_its_starts(tmp_path: Path) -> None:
-    from gymprecice_lab.benchmark import write_tables
+    from gymprecice_lab.benchmark_tables import write_tables
 
     controllers = [
         {

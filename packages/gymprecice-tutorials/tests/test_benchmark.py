@@ -14,11 +14,12 @@ import pytest
 from gymnasium.spaces import Box, Discrete
 
 from gymprecice.cli import main
-from gymprecice_lab import benchmark
-from gymprecice_lab.benchmark import BenchmarkError, check_algorithm_fits, parse_algorithms
+from gymprecice_lab import benchmark, benchmark_training
+from gymprecice_lab.benchmark_checks import BenchmarkError, check_algorithm_fits, parse_algorithms
 from gymprecice_lab.benchmark_stats import estimate, iqm
 from gymprecice_lab.command_runs import CommandFailed, run_commands
 from gymprecice_lab.feedback import FeedbackController
+from gymprecice_lab.lab_env import find_lab_env
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: two PPO seeds of 16 actions on the test double: what every tiny benchmark here trains
@@ -71,7 +72,7 @@ def _no_training(argv: list[str]) -> int:
 def bench(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """One benchmark whose seed 1 fails its first training attempt."""
     out = tmp_path_factory.mktemp("bench") / "run"
-    real = benchmark._train_once
+    real = benchmark_training._train_once
     calls: list[str] = []
 
     def flaky(argv: list[str]) -> int:
@@ -82,7 +83,7 @@ def bench(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         return real(argv)
 
     patch = pytest.MonkeyPatch()
-    patch.setattr(benchmark, "_train_once", flaky)
+    patch.setattr(benchmark_training, "_train_once", flaky)
     try:
         status = main(["benchmark", *TINY, "--out", str(out)])
     finally:
@@ -146,7 +147,7 @@ def test_intervals_contain_their_estimate_and_the_tables_agree(bench) -> None:
         assert f"| {c['label']} | {c['kind']} | {c['runs']} |" in markdown
     assert float(rows["PPO"]["mean_Cd_iqm"]) > 0  # the cylinders' mean Cd, beside the objective
     # the fraction of the drag floor that every controller reaches, from the same drag
-    floor = benchmark.find_lab_env("jet-cylinder-fast").reference
+    floor = find_lab_env("jet-cylinder-fast").reference
     for c in results["controllers"]:
         fraction, cd = c["metrics"]["floor_fraction"], c["metrics"]["mean_Cd"]
         assert np.asarray(fraction["scores"]) == pytest.approx(
@@ -252,7 +253,7 @@ def test_the_heated_plate_is_benchmarked_against_its_own_feedback_law(tmp_path) 
 def test_the_other_kinds_feedback_options_are_refused_before_training(
     tmp_path, monkeypatch, capsys, env, flag, message
 ) -> None:
-    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    monkeypatch.setattr(benchmark_training, "_train_once", _no_training)
     with pytest.raises(SystemExit) as exc:
         main(["benchmark", env, "--double", flag, "--out", str(tmp_path / "b")])
     assert message in capsys.readouterr().err + str(exc.value.code)
@@ -261,7 +262,7 @@ def test_the_other_kinds_feedback_options_are_refused_before_training(
 
 def test_a_resumed_benchmark_keeps_finished_seeds(bench, monkeypatch, capsys) -> None:
     before = (bench["out"] / "results.json").read_text()
-    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    monkeypatch.setattr(benchmark_training, "_train_once", _no_training)
     assert main(["benchmark", *TINY, "--out", str(bench["out"])]) == 0
     assert "ppo seed 1: trained already, kept" in capsys.readouterr().out
     assert json.loads((bench["out"] / "results.json").read_text()) == json.loads(before)
@@ -277,7 +278,7 @@ def test_a_benchmark_written_before_the_sinusoids_had_a_centre_resumes(
     settings = json.loads((out / "benchmark.json").read_text())
     del settings["baselines"]["centre"]
     (out / "benchmark.json").write_text(json.dumps(settings))
-    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    monkeypatch.setattr(benchmark_training, "_train_once", _no_training)
     assert main(["benchmark", *TINY, "--out", str(out)]) == 0
     assert json.loads((out / "benchmark.json").read_text())["baselines"]["centre"] == 0.5
     with pytest.raises(SystemExit) as exc:
@@ -286,7 +287,7 @@ def test_a_benchmark_written_before_the_sinusoids_had_a_centre_resumes(
 
 
 def test_a_resumed_benchmark_with_other_settings_is_refused(bench, monkeypatch, capsys) -> None:
-    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    monkeypatch.setattr(benchmark_training, "_train_once", _no_training)
     changed = [*TINY, "--out", str(bench["out"])]
     changed[changed.index("--timesteps") + 1] = "32"
     with pytest.raises(SystemExit) as exc:
@@ -310,13 +311,13 @@ def test_an_algorithm_added_to_a_benchmark_trains_alone_and_joins_the_table(
 
     out = tmp_path / "run"
     shutil.copytree(bench["out"], out)
-    real, trained = benchmark._train_once, []
+    real, trained = benchmark_training._train_once, []
 
     def recording(argv: list[str]) -> int:
         trained.append((argv[argv.index("--algo") + 1], argv[argv.index("--seed") + 1]))
         return real(argv)
 
-    monkeypatch.setattr(benchmark, "_train_once", recording)
+    monkeypatch.setattr(benchmark_training, "_train_once", recording)
     ppo_args = TINY[TINY.index("--train-args") + 1]
     sac_args = "--net 8,8 --vec-env dummy"
     added = _with_algorithms("ppo,sac", ppo_args, sac_args)
@@ -343,7 +344,7 @@ def test_a_seed_that_keeps_failing_stops_the_benchmark_without_a_table(
     def broken(argv: list[str]) -> int:
         raise RuntimeError("solver crashed (injected)")
 
-    monkeypatch.setattr(benchmark, "_train_once", broken)
+    monkeypatch.setattr(benchmark_training, "_train_once", broken)
     with pytest.raises(SystemExit) as exc:
         main(["benchmark", *TINY, "--retries", "2", "--out", str(tmp_path / "b")])
     assert exc.value.code == 1
@@ -426,7 +427,7 @@ def test_an_unknown_algorithm_is_refused_naming_the_choices(capsys) -> None:
 def test_a_training_flag_the_algorithm_lacks_is_refused_before_training(
     tmp_path, monkeypatch
 ) -> None:
-    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    monkeypatch.setattr(benchmark_training, "_train_once", _no_training)
     argv = ["benchmark", "jet-cylinder-fast", "--double", "--algo", "ppo,sac"]
     with pytest.raises(SystemExit) as exc:
         main([*argv, "--train-args", "--n-steps 8", "--out", str(tmp_path / "b")])
@@ -446,7 +447,7 @@ def test_a_training_flag_the_algorithm_lacks_is_refused_before_training(
 def test_a_bad_baseline_grid_is_refused_before_training(
     tmp_path, monkeypatch, capsys, flag, message
 ) -> None:
-    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    monkeypatch.setattr(benchmark_training, "_train_once", _no_training)
     with pytest.raises(SystemExit) as exc:
         main(["benchmark", "jet-cylinder-fast", "--double", flag, "--out", str(tmp_path / "b")])
     assert message in capsys.readouterr().err + str(exc.value.code)
@@ -644,7 +645,7 @@ def test_with_ray_every_seed_trains_evaluates_and_the_sweep_runs_on_the_cluster(
     assert not list(nodes.glob("gymprecice-command-*"))
 
     # a rerun keeps everything: nothing trains, nothing is sent to the cluster again
-    monkeypatch.setattr(benchmark, "_train_once", _no_training)
+    monkeypatch.setattr(benchmark_training, "_train_once", _no_training)
     assert main(["benchmark", *TINY, "--ray", address, "--out", str(out)]) == 0
     assert "done on" not in capsys.readouterr().out
 
