@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from gymprecice.cli import build_parser, main
-from gymprecice_lab import manifest, train
+from gymprecice_lab import hyperparams, manifest, requirements
+from gymprecice_lab.env_kwargs import build_env_kwargs
 from gymprecice_lab.lab_env import LabEnvError, find_lab_env, lab_envs
 
 ENVIRONMENTS = {env.name: env for env in lab_envs()}
@@ -93,7 +94,7 @@ def test_missing_requirements_depend_on_the_environment():
         ],
     }
     names = {
-        env: [c["name"] for c in train.missing_requirements(report, ENVIRONMENTS[env])]
+        env: [c["name"] for c in requirements.missing_requirements(report, ENVIRONMENTS[env])]
         for env in ENVIRONMENTS
     }
     assert names["jet-cylinder"] == ["mpirun"]  # two processes; gmsh and deal.II unused
@@ -102,14 +103,14 @@ def test_missing_requirements_depend_on_the_environment():
     report["checks"].append(_check("OpenFOAM-preCICE adapter", False, source="openfoam"))
     report["checks"][1]["ok"] = False
     for env in ENVIRONMENTS:
-        missing = [c["name"] for c in train.missing_requirements(report, ENVIRONMENTS[env])]
+        missing = [c["name"] for c in requirements.missing_requirements(report, ENVIRONMENTS[env])]
         assert "pyprecice" in missing and "OpenFOAM-preCICE adapter" in missing
 
 
 def test_require_solvers_passes_when_the_doctor_finds_everything(monkeypatch, capsys):
     report = {"ok": True, "checks": [_check("pyprecice", True, required=True)]}
     monkeypatch.setattr("gymprecice.cli.doctor_report", lambda: report)
-    assert train.require_solvers(ENVIRONMENTS["jet-cylinder"]) == 0
+    assert requirements.require_solvers(ENVIRONMENTS["jet-cylinder"]) == 0
     assert capsys.readouterr().err == ""
 
 
@@ -144,7 +145,7 @@ def test_train_require_solvers_on_this_machine(tmp_path):
     """The real doctor: stop at once, naming what this machine lacks (preCICE, adapter)."""
     from gymprecice.cli import doctor_report
 
-    missing = train.missing_requirements(doctor_report(), ENVIRONMENTS["jet-cylinder"])
+    missing = requirements.missing_requirements(doctor_report(), ENVIRONMENTS["jet-cylinder"])
     if not missing:
         pytest.skip("this machine has everything the jet cylinder needs")
     started = time.monotonic()
@@ -245,10 +246,10 @@ def test_rollouts_default_to_the_environments_own_horizon(tmp_path):
     out = tmp_path / "out"
     quick = parser.parse_args(["baseline", "quickstart", "--double"])
     jet = parser.parse_args(["baseline", "jet-cylinder", "--double"])
-    assert train.build_env_kwargs(quick, ENVIRONMENTS["quickstart"], out)["episode_time"] == 2.0
-    assert train.build_env_kwargs(jet, ENVIRONMENTS["jet-cylinder"], out)["episode_time"] == 10.0
+    assert build_env_kwargs(quick, ENVIRONMENTS["quickstart"], out)["episode_time"] == 2.0
+    assert build_env_kwargs(jet, ENVIRONMENTS["jet-cylinder"], out)["episode_time"] == 10.0
     trained = parser.parse_args(["train", "quickstart", "--double"])
-    assert "episode_time" not in train.build_env_kwargs(trained, ENVIRONMENTS["quickstart"], out)
+    assert "episode_time" not in build_env_kwargs(trained, ENVIRONMENTS["quickstart"], out)
 
 
 def test_without_solvers_and_without_double_one_line_suggests_double(tmp_path, monkeypatch, capsys):
@@ -300,11 +301,11 @@ def test_cuda_without_cuda_is_refused(tmp_path, monkeypatch):
 
 def test_batch_size_larger_than_the_rollout_is_clamped_with_a_warning(capsys):
     params = {"algo": "ppo", "n_steps": 16, "batch_size": 80}
-    notes = train._adjust_batch_size(params, 2)
+    notes = hyperparams.adjust_batch_size(params, 2)
     assert params["batch_size"] == 32
     assert notes and "--batch-size 80" in notes[0] and "training with batch size 32" in notes[0]
     assert "warning: --batch-size 80" in capsys.readouterr().err
-    assert train._adjust_batch_size({"algo": "ppo", "n_steps": 16, "batch_size": 32}, 2) == []
+    assert hyperparams.adjust_batch_size({"algo": "ppo", "n_steps": 16, "batch_size": 32}, 2) == []
 
 
 # -- hyperparameters -------------------------------------------------------------------------

@@ -135,7 +135,7 @@ def test_torch_threads_is_a_whole_number_of_threads(tmp_path):
     assert params["torch_threads"] == 1 and "torch_threads" not in hp.model_kwargs(params)
     import torch
 
-    from gymprecice_lab.train import learner_threads
+    from gymprecice_lab.learner import learner_threads
 
     before = torch.get_num_threads()
     try:

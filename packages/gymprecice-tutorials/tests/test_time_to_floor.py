@@ -139,7 +139,7 @@ def test_floor_metrics_take_the_settled_drag_after_the_transient() -> None:
 def test_a_wrapper_passes_the_typed_command_start_and_nonsense_is_ignored(monkeypatch) -> None:
     import time
 
-    from gymprecice_lab.train import command_started_at
+    from gymprecice_lab.train_manifest import command_started_at
 
     monkeypatch.setenv("GYMPRECICE_STARTED_AT", str(time.time() - 30))
     assert time.time() - command_started_at() == pytest.approx(30, abs=5)

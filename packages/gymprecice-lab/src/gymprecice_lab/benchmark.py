@@ -72,7 +72,9 @@ from gymprecice_lab.benchmark_settings import lock_settings, settings_of
 from gymprecice_lab.benchmark_tables import write_tables
 from gymprecice_lab.benchmark_training import train_seed, trained, worker_train_seed
 from gymprecice_lab.command_runs import evaluated, parse_command, run_in_pool
-from gymprecice_lab.lab_env import LabEnv, LabEnvError, find_lab_env
+from gymprecice_lab.env_kwargs import build_env_kwargs
+from gymprecice_lab.hyperparams import hyperparameters
+from gymprecice_lab.lab_env import LabEnv, LabEnvError, default_out, find_lab_env
 from gymprecice_lab.remote_commands import RemoteCommand
 from gymprecice_lab.starts import describe_starts
 
@@ -134,8 +136,6 @@ def benchmark_command(args: argparse.Namespace) -> int:
 def _plan(args: argparse.Namespace) -> _Plan | int:
     """Everything that can be refused, refused before anything trains (an exit status
     where the solvers are missing)."""
-    from gymprecice_lab.train import default_out, hyperparameters
-
     try:
         env = find_lab_env(args.env)
     except LabEnvError as exc:
@@ -177,7 +177,6 @@ def _probe(args: argparse.Namespace, env: LabEnv, out: Path) -> tuple[Any, gym.S
     starts (else seeds), its action space and its solvers' CPUs; nothing is left on disk."""
     from gymprecice_lab.envs import make_env_checked
     from gymprecice_lab.starts import StartsError, evaluation_starts
-    from gymprecice_lab.train import build_env_kwargs
 
     rollout = parse_command(["baseline", args.env, *common_options(args, args.eval_time)])
     try:

@@ -66,6 +66,7 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.card import FeedbackLaw, Reference, load_object
+from gymprecice_lab.env_kwargs import build_env_kwargs
 from gymprecice_lab.envs import (
     load_model,
     load_normalizer,
@@ -73,7 +74,13 @@ from gymprecice_lab.envs import (
     vecnormalize_path,
 )
 from gymprecice_lab.feedback import FeedbackController
-from gymprecice_lab.lab_env import LabEnv, LabEnvError, default_frequency, find_lab_env
+from gymprecice_lab.lab_env import (
+    LabEnv,
+    LabEnvError,
+    default_frequency,
+    default_out,
+    find_lab_env,
+)
 from gymprecice_lab.manifest import file_sha256, read_manifest, write_manifest
 from gymprecice_lab.policy_env import check_policy_env, policy_env_kwargs
 from gymprecice_lab.policy_format import Policy, PolicyError
@@ -86,7 +93,6 @@ from gymprecice_lab.starts import (
     seed_start_label,
     start_options,
 )
-from gymprecice_lab.train import build_env_kwargs, default_out
 from gymprecice_lab.video import (
     DEFAULT_NAME,
     VideoError,

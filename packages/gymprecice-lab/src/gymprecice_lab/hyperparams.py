@@ -5,18 +5,28 @@ then the flags typed on the command line. The resolved set is written to
 ``<out>/hyperparams.json`` when a run starts; a resumed run must resolve to the same set,
 because SB3 keeps a saved model's values and would otherwise silently train with other
 hyperparameters than the ones recorded.
+
+The command's side lives here too: :func:`hyperparameters` reads the file and the flags of
+its options, :func:`with_robustness` adds ``--wrap``, :func:`refuse_changed_resume` and
+:func:`keep_hyperparameters` hold a resume to the recorded set, and
+:func:`adjust_batch_size` clamps PPO's mini-batch to its rollout buffer.
 """
 
 from __future__ import annotations
 
+import argparse
 import inspect
 import json
 import math
+import shutil
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from gymprecice_lab.lab_env import LabEnv
 from gymprecice_lab.model_based.settings import ENSEMBLE_KEY, EnsembleSettings
+from gymprecice_lab.wrapping import wrap_spec
 
 #: the key that overlaps SAC's and TD3's updates with the solvers (gymprecice_lab.overlap)
 OVERLAP_KEY = "overlap_updates"
@@ -30,11 +40,16 @@ __all__ = [
     "DEFAULTS",
     "FLAGS",
     "HYPERPARAMS_NAME",
+    "adjust_batch_size",
     "algorithm_class",
     "changed_on_resume",
+    "hyperparameters",
+    "keep_hyperparameters",
     "load_hyperparams_file",
     "model_kwargs",
+    "refuse_changed_resume",
     "resolve",
+    "with_robustness",
 ]
 
 ALGORITHMS = ("ppo", "sac", "td3")
@@ -275,3 +290,95 @@ def _show(value: Any) -> str:
     if isinstance(value, list):
         return ",".join(str(v) for v in value)
     return "unset" if value is None else str(value)
+
+
+# -- the command's hyperparameters ---------------------------------------------------------
+
+
+def hyperparameters(args: argparse.Namespace, env: LabEnv, out: Path) -> dict[str, Any]:
+    """The run's resolved hyperparameters: the defaults, ``--hyperparams``, then the flags.
+
+    (:func:`keep_hyperparameters` copies ``--hyperparams`` into ``out``.)"""
+    from_file: dict[str, Any] = {}
+    if args.hyperparams is not None:
+        keys = tuple(dict.fromkeys((env.env_id, env.name, env.env_id.split("/", 1)[-1])))
+        from_file = load_hyperparams_file(args.hyperparams, args.algo, keys)
+    flags = {
+        "n_steps": args.n_steps,
+        "batch_size": args.batch_size,
+        "n_epochs": args.n_epochs,
+        "learning_rate": args.learning_rate,
+        "gamma": args.gamma,
+        "net": _net(args.net) if args.net is not None else None,
+        "normalize": True if args.normalize else None,
+        SHARED_KEY: True if getattr(args, "shared_policy", False) else None,
+    }
+    return resolve(args.algo, from_file, flags)
+
+
+def _net(text: str) -> list[int]:
+    """``--net 512,512``: the hidden layers' sizes."""
+    try:
+        sizes = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        sizes = []
+    if not sizes or min(sizes) < 1:
+        raise SystemExit(f"gymprecice train: --net must be sizes like 512,512, got {text!r}")
+    return sizes
+
+
+def with_robustness(params: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+    """``params`` with the robustness wrappers of the file and ``--wrap`` together (a
+    ``WrapError`` for a malformed one), none left where there are none."""
+    robustness = wrap_spec(params.get("robustness"), getattr(args, "wrap", []))
+    if robustness:
+        params["robustness"] = robustness
+    else:
+        params.pop("robustness", None)
+    return params
+
+
+def refuse_changed_resume(out: Path, params: Mapping[str, Any]) -> None:
+    """Refuse to resume the run in ``out`` with hyperparameters other than its own."""
+    saved_path = out / HYPERPARAMS_NAME
+    if not saved_path.is_file():
+        return
+    changed = changed_on_resume(json.loads(saved_path.read_text()), params)
+    if changed:
+        raise SystemExit(
+            f"gymprecice train: cannot resume {out} with other hyperparameters: "
+            f"{'; '.join(changed)} (SB3 would keep the saved values); rerun with the run's "
+            f"values (see {saved_path.name}) or add --fresh to start over"
+        )
+
+
+def keep_hyperparameters(
+    args: argparse.Namespace, out: Path, params: Mapping[str, Any], *, resumed: bool
+) -> None:
+    """Write the run's hyperparameters (a resume keeps the first run's) and a copy of
+    ``--hyperparams`` into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    if not resumed:
+        (out / HYPERPARAMS_NAME).write_text(json.dumps(params, indent=2) + "\n")
+    if args.hyperparams is not None and args.hyperparams.resolve() != (out / "hyperparams.yaml"):
+        shutil.copyfile(args.hyperparams, out / "hyperparams.yaml")
+
+
+def adjust_batch_size(params: dict[str, Any], slots: int) -> list[str]:
+    """PPO's mini-batch cannot exceed its rollout buffer: clamp it, say so, record it.
+
+    ``slots`` is the learner's steps per env step: ``--n-envs``, times the agents with
+    ``--shared-policy``."""
+    if params["algo"] != "ppo":
+        return []
+    buffer = int(params["n_steps"]) * slots
+    if int(params["batch_size"]) <= buffer:
+        return []
+    note = (
+        f"--batch-size {params['batch_size']} is larger than the rollout buffer "
+        f"(--n-steps {params['n_steps']} x {slots} learner slots = {buffer}); training "
+        f"with batch size {buffer}"
+    )
+    params["batch_size"] = buffer
+    print(f"gymprecice train: warning: {note}", file=sys.stderr)
+    return [note]

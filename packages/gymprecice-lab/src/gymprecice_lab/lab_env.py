@@ -6,7 +6,8 @@ what it needs beyond the Gymnasium API from that env's card
 (:class:`gymprecice.card.EnvCard`). :class:`LabEnv` is that pair, with the names the
 commands read; where the card leaves a field out, the command uses the default derived
 from the env (:func:`default_frequency`, the zero action clipped into the action box
-as "uncontrolled", seeds as starts...). A
+as "uncontrolled", seeds as starts...), and a run's directory is
+``runs/<name>/<command>`` without ``--out`` (:func:`default_out`). A
 command that needs a field the card lacks asks :meth:`LabEnv.require`, which refuses in
 one line naming the field and how to declare it, before anything is made on disk.
 """
@@ -16,6 +17,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from gymprecice.card import CardError, EnvCard, Reference, card_for, find_env, registered_ids
@@ -25,6 +27,7 @@ __all__ = [
     "LabEnvError",
     "Refused",
     "default_frequency",
+    "default_out",
     "find_lab_env",
     "lab_envs",
     "names_where",
@@ -212,3 +215,8 @@ def default_frequency(env: Any) -> float:
         if isinstance(value, (int, float)) and value > 0:
             return 0.1 / float(value)
     return 1.0
+
+
+def default_out(env: LabEnv, command: str) -> Path:
+    """``runs/<env name>/<command>``: where a command writes without ``--out``."""
+    return Path("runs") / env.name / command

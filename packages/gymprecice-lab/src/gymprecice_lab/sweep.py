@@ -43,6 +43,7 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.card import FeedbackLaw, load_object
+from gymprecice_lab.env_kwargs import build_env_kwargs
 from gymprecice_lab.envs import make_env_checked
 from gymprecice_lab.evaluate import (
     episodes_by_start,
@@ -51,11 +52,10 @@ from gymprecice_lab.evaluate import (
     zero_controller,
 )
 from gymprecice_lab.feedback import FeedbackController, own_law_grid
-from gymprecice_lab.lab_env import LabEnv, LabEnvError, find_lab_env
+from gymprecice_lab.lab_env import LabEnv, LabEnvError, default_out, find_lab_env
 from gymprecice_lab.manifest import write_manifest
 from gymprecice_lab.requirements import require_solvers
 from gymprecice_lab.starts import StartsError, describe_starts, held_out_starts
-from gymprecice_lab.train import build_env_kwargs, default_out
 
 __all__ = [
     "SweepJob",
