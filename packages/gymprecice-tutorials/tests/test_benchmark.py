@@ -206,6 +206,31 @@ def test_the_flap_is_benchmarked_on_its_own_objective(tmp_path) -> None:
     assert results["controllers"][3]["label"].startswith("best sinusoid: sine-c0.875-")
 
 
+@pytest.mark.slow
+def test_a_shared_policy_is_benchmarked_on_the_two_flaps_joint_env(tmp_path) -> None:
+    """``--train-args "--shared-policy"``: every seed trains one policy both flaps share
+    (a step per agent), is evaluated on both rows of the joint env from the three held-out
+    gusts, and is named as a shared policy in the table."""
+    out = tmp_path / "run"
+    training = [*ONE_SEED_TRAINING]
+    training[training.index("--timesteps") + 1] = "60"  # one 30-action episode, two agents
+    training[training.index("--train-args") + 1] = (
+        "--shared-policy --n-steps 30 --batch-size 30 --n-epochs 1 --net 8,8 --vec-env dummy"
+    )
+    argv = ["two-flaps-fast", *training, "--no-baselines"]
+    assert main(["benchmark", *argv, "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    (learned,) = results["controllers"]
+    assert learned["label"] == "PPO, shared policy"
+    assert np.asarray(learned["metrics"]["objective"]["scores"]).shape == (1, 3)
+    manifest = json.loads((out / "train/ppo/seed_0/manifest.json").read_text())
+    assert manifest["settings"]["hyperparams"]["shared_policy"] is True
+    assert manifest["result"]["timesteps"] == 60
+    summary = json.loads((out / "eval/ppo/seed_0/summary.json").read_text())
+    assert [e["start"] for e in summary["episodes"]] == [0, 1, 2]
+    assert "PPO, shared policy" in (out / "results.md").read_text()
+
+
 def test_the_heated_plate_is_benchmarked_against_its_own_feedback_law(tmp_path) -> None:
     """An env that names its classical feedback (the plate's PID heater): the baselines'
     feedback is the best point of that law's grid, recorded in benchmark.json, run on the

@@ -247,8 +247,21 @@ def _evaluate_seeds(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any
             start_scores(_summary(plan.run("eval", algo, seed)), plan.env, len(plan.starts))
             for seed in range(args.seeds)
         ]
-        controllers.append(controller_entry(algo.upper(), "learned", runs, args.bootstrap_reps))
+        label = _learned_label(algo, plan.run("train", algo, 0))
+        controllers.append(controller_entry(label, "learned", runs, args.bootstrap_reps))
     return controllers
+
+
+def _learned_label(algo: str, train_dir: Path) -> str:
+    """The table's name for an algorithm's seeds: ``SAC``, or ``SAC, shared policy`` where
+    they trained one policy for every agent of a joint env (``--shared-policy``), which a
+    reader must tell apart from one controller of every actuator."""
+    try:
+        settings = json.loads((train_dir / "manifest.json").read_text())["settings"]
+        shared = bool(settings.get("hyperparams", {}).get("shared_policy"))
+    except (OSError, ValueError, KeyError, TypeError):
+        shared = False
+    return f"{algo.upper()}, shared policy" if shared else algo.upper()
 
 
 def _baselines(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any]]:

@@ -354,7 +354,9 @@ def _benchmark() -> Command:
                 help="training seeds per algorithm (0..N-1)",
             ),
             o.ALGO.but(choices=None, help=f"algorithms, comma-separated ({', '.join(ALGORITHMS)})"),
-            o.TIMESTEPS.but(help="actions per training seed"),
+            o.TIMESTEPS.but(
+                help="steps per training seed, as train counts them (with --shared-policy in --train-args: a step per agent)"
+            ),
             o.N_ENVS.but(help="parallel envs per seed"),
             option(
                 "--train-args",
