@@ -552,10 +552,17 @@ def _two_flaps_against_uncontrolled(tmp_path: Path, *starts: str, timeout: float
     assert np.all(np.abs(slots) <= 10.0 * (1 + 1e-6)) and np.ptp(slots, axis=0).min() > 0
 
 
-def test_the_two_flaps_ship_one_policy_both_flaps_share():
+def test_the_two_flaps_ship_one_policy_both_flaps_share(monkeypatch, capsys):
     """The two flaps' policy was trained --shared-policy: it takes one flap's row and
-    says which agents share it, in the order of the env's card."""
+    says which agents share it, in the order of the env's card, as `gymprecice policies`
+    tells."""
     from gymprecice.card import card_for
+    from gymprecice.cli import main
+
+    monkeypatch.delenv(POLICIES_DIR_ENV, raising=False)
+    assert main(["policies"]) == 0
+    (line,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("two-flaps")]
+    assert "one policy shared by upstream, downstream" in line
 
     meta = shipped_policies(PACKAGE_POLICIES)["two-flaps-fast"]
     assert meta["shared_by"] == list(card_for("gymprecice/TwoFlapsFast-v0").agents)

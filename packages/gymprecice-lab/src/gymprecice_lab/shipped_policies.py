@@ -320,6 +320,8 @@ def list_command(args: argparse.Namespace) -> int:
             f"{name}: trained on {meta['env']['name']} for {meta['training']['timesteps']:,} "
             f"steps, {meta['env_kwargs']}"
         )
+        if meta.get("shared_by"):  # trained --shared-policy: one policy every agent runs
+            line += f"; one policy shared by {', '.join(meta['shared_by'])}"
         over = (meta.get("evaluation") or {}).get("over_episodes") or {}
         cd = over.get("mean_Cd")
         objective = _objective(meta["env"]["name"])
