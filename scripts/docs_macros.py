@@ -23,12 +23,20 @@ The figures come from:
 Rerunning one of those commands and copying its file over the old one updates every page
 that quotes it; no page holds the number itself. A name that is not there fails the
 build (``on_undefined: strict``), naming the page.
+
+Two more things are read, not written: the version every page shows in its footer
+(``{{ version }}``: gymprecice-core's, from its installed metadata, else its
+pyproject.toml), and the command reference (``{{ command_reference() }}``), written from
+the ``gymprecice`` command line's own parsers by scripts/docs_commands.py.
 """
 
 from __future__ import annotations
 
+import importlib.metadata
+import importlib.util
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -157,10 +165,35 @@ def setup_figures(results: Path = RESULTS) -> dict[str, Any]:
     }
 
 
+def version() -> str:
+    """gymprecice-core's version: its installed metadata, else its pyproject.toml."""
+    try:
+        return importlib.metadata.version("gymprecice-core")
+    except importlib.metadata.PackageNotFoundError:
+        pyproject = (ROOT / "packages" / "gymprecice-core" / "pyproject.toml").read_text()
+        found = re.search(r'^version\s*=\s*"([^"]+)"', pyproject, re.MULTILINE)
+        if found is None:
+            raise RuntimeError("packages/gymprecice-core/pyproject.toml names no version") from None
+        return found.group(1)
+
+
+def command_reference() -> str:
+    """Every ``gymprecice`` command, from its parser (scripts/docs_commands.py)."""
+    path = Path(__file__).with_name("docs_commands.py")
+    spec = importlib.util.spec_from_file_location("docs_commands", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.command_reference()
+
+
 def define_env(env: Any) -> None:
-    """mkdocs-macros' entry point: the figures as variables, the look-ups as macros."""
+    """mkdocs-macros' entry point: the figures as variables, the look-ups as macros, and
+    the version in every page's footer."""
+    env.variables["version"] = version()
+    env.conf["copyright"] = f"gymprecice {env.variables['version']}"
     env.variables["shipped"] = shipped()
     env.variables["setup"] = setup_figures()
+    env.macro(command_reference)
     env.macro(score)
     env.macro(time_to_floor)
     env.filter(clock)

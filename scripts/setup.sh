@@ -202,6 +202,19 @@ if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi
 PIP=".venv/bin/python -m pip"
+# What .venv was installed from: the distributions' pyproject.toml files, the docs'
+# requirements and this script. When none changed since the last install and every
+# distribution still imports, pip has nothing to do: skip it (it takes most of a minute
+# only to find that out, and `bash scripts/train.sh` counts that time).
+VENV_STAMP=.venv/.gymprecice-setup-inputs
+venv_inputs() {
+  cat packages/*/pyproject.toml docs/requirements.txt "$0" | sha256sum | cut -d' ' -f1
+}
+if [ -f "$VENV_STAMP" ] && [ "$(cat "$VENV_STAMP")" = "$(venv_inputs)" ] &&
+  .venv/bin/python -c "import gymprecice, gymprecice_lab, gymprecice_tutorials, gymprecice_openfoam, gymprecice_dealii, gymprecice_fenics, torch, xdist" >/dev/null 2>&1; then
+  echo "setup: .venv up to date (its inputs are unchanged since it was installed)"
+else
+rm -f "$VENV_STAMP"
 $PIP install -q --disable-pip-version-check --upgrade pip >/dev/null
 if ! .venv/bin/python -c "import torch" >/dev/null 2>&1; then
   $PIP install -q --disable-pip-version-check "torch==${TORCH_VERSION}"
@@ -219,6 +232,8 @@ $PIP install -q --disable-pip-version-check \
 # The test suite's two workers (scripts/test.sh): pytest-xdist.
 .venv/bin/python -c "import xdist" >/dev/null 2>&1 ||
   $PIP install -q --disable-pip-version-check "pytest-xdist==3.8.0"
+venv_inputs >"$VENV_STAMP"
+fi
 phase ".venv ready"
 split_add ".venv (pip)" $((SECONDS - VENV_START))
 fi

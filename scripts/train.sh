@@ -12,9 +12,12 @@
 # environments of one solver rank each, observation and reward normalisation, SAC with the
 # settings of scripts/sac-overlap.yml (update-to-data ratio 2, its gradient steps run while
 # the solvers compute, one learner thread), 4,000 actions (50 episodes) with a checkpoint
-# every 800. Then `gymprecice time-to-floor` evaluates the checkpoints in order from both
-# held-out starts and prints when the training reached 90 % and 95 % of the drag floor,
-# counted from the moment this script was typed. Why this recipe: in the benchmark's five
+# every 800. At every checkpoint, and once more at the end, the policy is scored from the
+# two validation starts (snapshots that neither training nor the held-out evaluation
+# uses), and the best is kept as best_model.zip. Then `gymprecice time-to-floor`
+# evaluates that kept model from both held-out starts and prints its fraction of the drag
+# floor and when it was saved, counted from the moment this script was typed
+# (`--model checkpoints` there scans every checkpoint instead). Why this recipe: in the benchmark's five
 # seeds it reached 95 % of the floor in a median of under 12 minutes on 2 cores, the
 # fastest recipe measured; with SB3's order SAC took about 16, and PPO's median seed did
 # not reach 95 % within 4,000 actions (docs/benchmark.md).

@@ -227,8 +227,13 @@ def test_shipping_keeps_what_evaluation_needs_and_the_record(tiny):
     assert meta["action_space"]["high"] == [BOUND] and meta["observation_shape"] == [151]
     training = meta["training"]
     assert training["command"].startswith("gymprecice train quickstart --double")
-    assert training["timesteps"] == 16 and training["wall_clock_seconds"] > 0
-    assert training["model_sha256"] == file_sha256(root / "train" / "model.zip")
+    # the run's kept model ships: the best of its validations, with what chose it
+    kept = training["kept"]
+    assert training["timesteps"] == kept["timesteps"] and kept["timesteps"] in (8, 16)
+    assert training["timesteps_requested"] == 16 and training["wall_clock_seconds"] > 0
+    assert kept["score"] == "mean validation return" and len(kept["starts"]) == 3
+    assert training["model"] == "best_model.zip"
+    assert training["model_sha256"] == file_sha256(root / "train" / "best_model.zip")
     assert training["manifest_model_sha256_matches"] is True
     assert training["source"] is None or isinstance(training["source"], str)
     evaluation = meta["evaluation"]
@@ -239,15 +244,17 @@ def test_shipping_keeps_what_evaluation_needs_and_the_record(tiny):
     assert files == {"model.zip", "model_vecnormalize.pkl", "policy.json"}
     # SB3's own loader reads it; no optimizer moments; acts exactly like the trained model
     slim = PPO.load(policies / "tiny" / "model.zip", device="cpu")
-    trained = PPO.load(root / "train" / "model.zip", device="cpu")
+    trained = PPO.load(root / "train" / "best_model.zip", device="cpu")  # the kept model
+    final = PPO.load(root / "train" / "model.zip", device="cpu")
     assert not slim.policy.optimizer.state_dict()["state"]
-    assert trained.policy.optimizer.state_dict()["state"]
+    assert final.policy.optimizer.state_dict()["state"]  # what shipping strips
     # the value function is blank (only training reads it), the actor untouched
     for (name, ours), (_, theirs) in zip(
         slim.policy.named_parameters(), trained.policy.named_parameters(), strict=True
     ):
         if name.startswith(("mlp_extractor.value_net.", "value_net.")):
-            assert not ours.any() and theirs.any(), name
+            assert not ours.any(), name  # blank whatever the kept model's (weights: not)
+            assert theirs.any() or name.endswith("bias"), name
         else:
             assert ours.equal(theirs), name
     obs = np.random.default_rng(1).normal(size=(5, 151)).astype(np.float32)
@@ -322,8 +329,8 @@ def test_evaluate_by_name_and_as_shipped_acts_like_the_training_run(tiny):
     settings = json.loads((root / "by-name" / "manifest.json").read_text())["settings"]
     assert settings["policy"]["name"] == "tiny" and settings["policy"]["source"] == "shipped"
     assert settings["env_kwargs"]["max_flow_rate"] == BOUND
-    # --model still takes a path
-    _ok(_cli(root, "evaluate", *common, "--model", "train/model.zip", "--out", "model"))
+    # --model still takes a path (here the kept model, the one shipped)
+    _ok(_cli(root, "evaluate", *common, "--model", "train/best_model.zip", "--out", "model"))
     assert np.allclose(_actions(root / "model"), _actions(root / "evaluate"), rtol=1e-6, atol=0)
 
 

@@ -308,12 +308,19 @@ _DYING_ENV = textwrap.dedent(
     """
     import os, sys
     from pathlib import Path
+    from gymprecice import owner_watchdog, processes
     from gymprecice.processes import PidRegistry, SolverProcess
     from gymprecice.solver import LaunchSpec
 
+    # The layers that end the solvers with their owner (PR_SET_PDEATHSIG, the watchdog)
+    # fail here, so that what is left is the outer supervisor's to kill.
+    processes._die_with_parent_hook = lambda: None
     env_dir = Path(sys.argv[1])
     spec = LaunchSpec(["bash", "-c", "sleep 1000 & sleep 1000 & wait"], env_dir)
     proc = SolverProcess.start("fluid", spec, registry=PidRegistry(env_dir))
+    watchdog = owner_watchdog.watchdog_pid()
+    os.kill(watchdog, 9)
+    os.waitpid(watchdog, 0)
     print(proc.pgid, flush=True)
     os._exit(0)  # the env dies without cleaning up
     """

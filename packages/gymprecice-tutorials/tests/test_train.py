@@ -207,7 +207,8 @@ def test_evaluate_runs_the_trained_policy_deterministically(recorded):
     root: Path = recorded["root"]  # type: ignore[assignment]
     manifest = json.loads((root / "evaluate" / "manifest.json").read_text())
     assert manifest["settings"]["deterministic"] is True
-    assert Path(manifest["settings"]["model"]) == (root / "train" / "model.zip").resolve()
+    # a training directory gives its kept model, the best of its validations
+    assert Path(manifest["settings"]["model"]) == (root / "train" / "best_model.zip").resolve()
     rows = _history(root / "evaluate" / "history.csv")
     assert len(rows) == 20  # two episodes of 10 actions
     rows = [r for r in rows if r["episode"] == "0"]
@@ -223,7 +224,7 @@ def test_evaluate_runs_the_trained_policy_deterministically(recorded):
             "--episode-time",
             "0.1",
             "--model",
-            "train/model.zip",
+            "train/best_model.zip",
             "--out",
             "evaluate-again",
         )
@@ -422,7 +423,9 @@ def test_evaluate_states_drag_and_lift_over_every_solver_step(recorded):
         100 * (ours - ref) / abs(ref)
     )
     out = recorded["rollouts"]["evaluate"]  # type: ignore[index]
-    line = next(x for x in out.splitlines() if x.startswith("gymprecice evaluate:"))
+    lines = [x for x in out.splitlines() if x.startswith("gymprecice evaluate:")]
+    assert "the kept model" in lines[0]  # which model of the training run it took
+    line = next(x for x in lines if "episode(s)" in x)
     assert "mean |Cl|" in line and "over every solver step" in line
     # no relative change of the return: it is about zero uncontrolled by construction
     assert line.split(", mean Cd")[0].count("against the baseline") == 0

@@ -188,6 +188,13 @@ class EnvCard:
     #: property (their labels) and takes ``reset(options={"split": "eval", "start": k})``;
     #: default: starts are seeds (evaluate and benchmark draw them from seeds)
     held_out_starts: bool = False
+    #: whether the env keeps a second set of starts for *choosing* among models (the
+    #: model a training run keeps): it has a ``validation_starts`` property (their labels)
+    #: and takes ``reset(options={"split": "validation", "start": k})``; they are disjoint
+    #: from the held-out starts and from anything training draws, so the held-out starts
+    #: judge a controller without having chosen it. Default: none declared, and the lab
+    #: derives them (:func:`gymprecice_lab.starts.validation_starts`)
+    validation_starts: bool = False
     #: env keyword arguments of the uncontrolled (reference) setting, where no action
     #: means it; default: none, the zero action clipped into the action box (in the
     #: env's own units) stands for "uncontrolled" (baseline, sweep, benchmark)

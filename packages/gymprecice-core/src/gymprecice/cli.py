@@ -29,6 +29,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from gymprecice.clean_command import add_clean_parser, leftover_check
 from gymprecice.distribution import CLASH_FIX, core_version, name_clash
 from gymprecice.errors import GymPreciceError
 from gymprecice.install_command import add_install_parser, stack_checks
@@ -42,6 +43,7 @@ from gymprecice.plugins import (
     plugin_failures,
     solver_kinds,
 )
+from gymprecice.scaffold import add_new_parser
 from gymprecice.sketch_command import add_sketch_parser
 from gymprecice.solver import DoctorCheck
 from gymprecice.stack import stack_prefix
@@ -91,6 +93,8 @@ def build_parser(pm: GymPrecicePluginManager | None = None) -> argparse.Argument
 
     add_install_parser(sub)
     add_sketch_parser(sub)
+    add_clean_parser(sub)
+    add_new_parser(sub)
 
     _add_plugin_commands(sub, pm or get_plugin_manager())
     return parser
@@ -363,6 +367,7 @@ def core_checks() -> list[DoctorCheck]:
     if clash is not None:
         checks.append(DoctorCheck("gymprecice package", False, clash, CLASH_FIX, True))
     checks.append(_check_pyprecice())
+    checks.append(leftover_check())
     return checks
 
 

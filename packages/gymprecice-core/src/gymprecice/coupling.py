@@ -16,20 +16,17 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-import queue
 import signal
 import socket
 import struct
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -81,8 +78,9 @@ class WorkerProcess:
     supervisor never mistakes a later holder of its pid for it. It asks the kernel to
     SIGKILL it when the thread that forked it exits (``PR_SET_PDEATHSIG`` follows the
     *thread*, not the process), so it is forked from a thread that lives as long as the
-    process (:func:`_call_in_lasting_thread`): an env reset from a worker thread of a
-    ``ThreadPoolExecutor`` keeps its coupling worker after that thread ends.
+    process (:func:`~gymprecice.processes.call_in_lasting_thread`, as every launch): an env
+    reset from a worker thread of a ``ThreadPoolExecutor`` keeps its coupling worker after
+    that thread ends.
     """
 
     def __init__(
@@ -100,15 +98,13 @@ class WorkerProcess:
         argv = [sys.executable, "-m", "gymprecice._worker", str(child.fileno()), str(os.getpid())]
         try:
             with open(log_path, "ab") as log:
-                launched = _call_in_lasting_thread(
-                    lambda: launch(
-                        argv,
-                        cwd=None,
-                        env=env,
-                        stdout=log.fileno(),
-                        pass_fds=(child.fileno(),),
-                        registry=registry,
-                    )
+                launched = launch(
+                    argv,
+                    cwd=None,
+                    env=env,
+                    stdout=log.fileno(),
+                    pass_fds=(child.fileno(),),
+                    registry=registry,
                 )
         except BaseException:
             parent.close()
@@ -169,42 +165,6 @@ class WorkerProcess:
 
     def log_tail(self, lines: int = 30) -> str:
         return read_tail(self.log_path, lines)
-
-
-_T = TypeVar("_T")
-_lasting: tuple[int, queue.SimpleQueue[Any]] | None = None
-_lasting_lock = threading.Lock()
-
-
-def _call_in_lasting_thread(fn: Callable[[], _T]) -> _T:
-    """Run ``fn`` on a thread that lives until the process exits; return its result.
-
-    The main thread is one already; any other caller hands ``fn`` to a daemon thread
-    started once per process (again after a ``fork``).
-    """
-    global _lasting
-    if threading.current_thread() is threading.main_thread():
-        return fn()
-    with _lasting_lock:
-        if _lasting is None or _lasting[0] != os.getpid():
-            requests: queue.SimpleQueue[Any] = queue.SimpleQueue()
-            threading.Thread(
-                target=_serve_calls, args=(requests,), name="gymprecice-launcher", daemon=True
-            ).start()
-            _lasting = (os.getpid(), requests)
-        requests = _lasting[1]
-    future: Future[_T] = Future()
-    requests.put((fn, future))
-    return future.result()
-
-
-def _serve_calls(requests: queue.SimpleQueue[Any]) -> None:
-    while True:
-        fn, future = requests.get()
-        try:
-            future.set_result(fn())
-        except BaseException as exc:
-            future.set_exception(exc)
 
 
 #: what preCICE logs in a participant whose partner went away (3.4.1's sockets): its

@@ -13,8 +13,9 @@ signal reaches the process that was checked and no later holder of its number:
 
 * the leader, when its start time equals the recorded one (and its environment, where
   readable, holds the recorded token: start times tick only every 10 ms);
-* any member of the group while the proven leader still exists (alive or an unreaped
-  zombie): a group number cannot be reused while its leader holds the pid;
+* any member of the group, or of the session the leader started (``mpirun`` puts each
+  rank in a group of its own), while the proven leader still exists (alive or an
+  unreaped zombie): neither number can be reused while the leader holds the pid;
 * any process whose environment holds the record's launch token (members left behind
   after the leader exited, or a launch still being recorded).
 
@@ -73,6 +74,16 @@ class ProcStat:
     pgrp: int
     flags: int
     starttime: int
+    session: int = -1
+
+    def in_group_of(self, pgid: int) -> bool:
+        """In the process group ``pgid``, or in the session its leader started.
+
+        Solvers start in a session of their own (its id is the leader's pid, the group's
+        number), and launchers may put what they start in groups of its own inside it:
+        Open MPI's ``mpirun`` gives each rank its own process group.
+        """
+        return self.pgrp == pgid or self.session == pgid
 
     @property
     def dead(self) -> bool:
@@ -89,7 +100,13 @@ def proc_stat(pid: int) -> ProcStat | None:
     rest = data[data.rfind(b")") + 2 :].split()
     try:
         return ProcStat(
-            pid, rest[0].decode(), int(rest[1]), int(rest[2]), int(rest[6]), int(rest[19])
+            pid,
+            rest[0].decode(),
+            int(rest[1]),
+            int(rest[2]),
+            int(rest[6]),
+            int(rest[19]),
+            int(rest[3]),
         )
     except (IndexError, ValueError):
         return None
@@ -352,7 +369,7 @@ def proven_members(record: GroupRecord) -> list[_Handle]:
         st = proc_stat(pid)
         if st is None or st.dead:
             continue
-        if record.pgid is not None and st.pgrp != record.pgid:
+        if record.pgid is not None and not st.in_group_of(record.pgid):
             continue
         if record.pgid is None and record.token is None:
             continue
@@ -363,7 +380,7 @@ def proven_members(record: GroupRecord) -> list[_Handle]:
         ours = (
             st is not None
             and not st.dead
-            and (record.pgid is None or st.pgrp == record.pgid)
+            and (record.pgid is None or st.in_group_of(record.pgid))
             and (
                 (leader is not None and leader.exists())
                 or (record.token is not None and _carries_token(pid, record.token))

@@ -14,6 +14,16 @@ by handing out a pidfd, which becomes readable when the solver exits.
 A solver's leader is never reaped before its group is known to be empty: until then its
 pid, and so the group's number, cannot be reused, and no signal can reach a stranger.
 
+No solver outlives the process that owns its env, whatever kills that process (``kill -9``,
+the OOM killer, a job's time limit): every child :func:`launch` starts asks the kernel for
+SIGKILL when its parent dies (``PR_SET_PDEATHSIG``, set between fork and exec), and the
+owner's watchdog (:mod:`gymprecice.owner_watchdog`), told about each launch before the
+fork, kills the rest of the group and of its session (what a script or ``mpirun``
+started) once the owner is gone. ``PR_SET_PDEATHSIG`` fires when the *thread* that forked
+the child exits, so every fork happens on a thread that lasts as long as the process
+(:func:`call_in_lasting_thread`): a reset from a short-lived thread must not kill the
+solvers it started when that thread ends.
+
 Solver scripts often call ``mpirun``. That breaks when the Python process initialised an
 MPI singleton (``from mpi4py import MPI``) before its environment reached the solver:
 :func:`clean_mpi_environment` removes the MPI runtime variables that make ``mpirun``
@@ -23,9 +33,11 @@ refuse to start, and keeps the user's MPI configuration.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import errno
 import logging
 import os
+import queue
 import secrets
 import select
 import shlex
@@ -33,10 +45,13 @@ import signal
 import subprocess
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, TypeVar
 
+from gymprecice import owner_watchdog
 from gymprecice.errors import CaseError, SolverCrashedError, SolverTimeoutError
 from gymprecice.pidregistry import (
     KILL_WAIT_S,
@@ -56,6 +71,7 @@ __all__ = [
     "Launched",
     "PidRegistry",
     "SolverProcess",
+    "call_in_lasting_thread",
     "clean_mpi_environment",
     "describe_returncode",
     "kill_recorded_groups",
@@ -185,6 +201,84 @@ def _pidfd_available() -> bool:
     return _pidfd_checked
 
 
+_T = TypeVar("_T")
+_lasting: tuple[int, queue.SimpleQueue[Any], threading.Thread] | None = None
+_lasting_lock = threading.Lock()
+
+
+def call_in_lasting_thread(fn: Callable[[], _T]) -> _T:
+    """Run ``fn`` on a thread that lives until the process exits; return its result.
+
+    The kernel sends a child's ``PR_SET_PDEATHSIG`` when the *thread* that forked it exits,
+    not the process; an env reset from a ``ThreadPoolExecutor`` worker would otherwise lose
+    its solvers when the pool shuts down. The main thread lasts already; any other caller
+    hands ``fn`` to a daemon thread started once per process (again after a ``fork``).
+    """
+    global _lasting
+    if threading.current_thread() is threading.main_thread():
+        return fn()
+    with _lasting_lock:
+        if _lasting is None or _lasting[0] != os.getpid():
+            requests: queue.SimpleQueue[Any] = queue.SimpleQueue()
+            thread = threading.Thread(
+                target=_serve_calls, args=(requests,), name="gymprecice-launcher", daemon=True
+            )
+            thread.start()
+            _lasting = (os.getpid(), requests, thread)
+        requests, lasting = _lasting[1], _lasting[2]
+    if threading.current_thread() is lasting:
+        return fn()
+    future: Future[_T] = Future()
+    requests.put((fn, future))
+    return future.result()
+
+
+def _serve_calls(requests: queue.SimpleQueue[Any]) -> None:
+    while True:
+        fn, future = requests.get()
+        try:
+            future.set_result(fn())
+        except BaseException as exc:
+            future.set_exception(exc)
+
+
+_PR_SET_PDEATHSIG = 1
+_prctl: Any = None
+
+
+def _prctl_function() -> Any:
+    """libc's ``prctl``, looked up once in the parent (``None`` where there is none)."""
+    global _prctl
+    if _prctl is None:
+        try:
+            _prctl = ctypes.CDLL(None, use_errno=True).prctl
+        except (OSError, AttributeError):
+            _prctl = False
+    return _prctl or None
+
+
+def _die_with_parent_hook() -> Callable[[], None] | None:
+    """What the child runs between fork and exec: SIGKILL when this process dies.
+
+    ``PR_SET_PDEATHSIG`` survives ``exec`` (of a program that is not set-user-ID). A parent
+    that died between the fork and the ``prctl`` sends nothing: the child sees it by its
+    parent's pid, now another process's (init or a subreaper), and exits at once. The hook
+    calls only a pre-resolved libc function and ``getppid``.
+    """
+    prctl = _prctl_function()
+    if prctl is None:
+        return None
+    parent = os.getpid()
+    kill = int(signal.SIGKILL)
+
+    def in_child() -> None:
+        prctl(_PR_SET_PDEATHSIG, kill, 0, 0, 0)
+        if os.getppid() != parent:
+            os._exit(1)
+
+    return in_child
+
+
 def _open_log(path: Path, append: bool) -> int:
     flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | getattr(os, "O_CLOEXEC", 0)
     if not append:
@@ -218,31 +312,42 @@ def launch(
 ) -> Launched:
     """Start ``argv`` in a new session and process group, recorded before it exists.
 
-    The child's environment gets a fresh launch token (:data:`PROCESS_TOKEN_VARIABLE`).
-    The token is written to ``registry`` before ``fork``, and the group's number and start
-    time right after, so an env killed at any instant leaves a record a supervisor can act
-    on. The wake descriptor is a pidfd, or (kernels without pidfds) the read end of a pipe
-    that only the child's processes hold. ``OSError`` from ``Popen`` propagates.
+    The child's environment gets a fresh launch token (:data:`PROCESS_TOKEN_VARIABLE`) and
+    its owner's identity (:data:`~gymprecice.owner_watchdog.OWNER_VARIABLE`). The token is
+    written to ``registry`` and announced to this process's watchdog before ``fork``, and
+    the group's number and start time recorded right after, so an env killed at any instant
+    leaves a record a supervisor can act on. The child dies with this process
+    (``PR_SET_PDEATHSIG``, forked from a lasting thread). The wake descriptor is a pidfd, or
+    (kernels without pidfds) the read end of a pipe that only the child's processes hold.
+    ``OSError`` from ``Popen`` propagates.
     """
     token = secrets.token_hex(8)
-    child_env = {**env, PROCESS_TOKEN_VARIABLE: token}
+    child_env = {
+        **env,
+        PROCESS_TOKEN_VARIABLE: token,
+        owner_watchdog.OWNER_VARIABLE: owner_watchdog.owner_variable(),
+    }
     use_pidfd = _pidfd_available()
     pipe_r = pipe_w = -1
     if not use_pidfd:
         pipe_r, pipe_w = os.pipe()
     if registry is not None:
         registry.add_pending(token)
+        owner_watchdog.watch(registry.env_dir, token)
     try:
-        popen = subprocess.Popen(
-            list(argv),
-            cwd=cwd,
-            env=child_env,
-            stdin=subprocess.DEVNULL,
-            stdout=stdout,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-            close_fds=True,
-            pass_fds=(*pass_fds, *(() if use_pidfd else (pipe_w,))),
+        popen = call_in_lasting_thread(
+            lambda: subprocess.Popen(
+                list(argv),
+                cwd=cwd,
+                env=child_env,
+                stdin=subprocess.DEVNULL,
+                stdout=stdout,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+                close_fds=True,
+                pass_fds=(*pass_fds, *(() if use_pidfd else (pipe_w,))),
+                preexec_fn=_die_with_parent_hook(),  # see the hook: libc's prctl only
+            )
         )
     except BaseException:
         if pipe_r >= 0:

@@ -26,7 +26,8 @@ docs/benchmark.md on one environment, reusing the other commands for each piece:
    of the env's own metrics: its card's ``metrics``, the cylinders' drag and lift over
    every solver step, the fractions of a drag floor), each with a 95 %
    stratified-bootstrap interval (:mod:`gymprecice_lab.benchmark_stats`), into ``results.md``, ``results.csv`` and
-   ``results.json``, and draw ``return_wallclock.png`` (training return against wall-clock,
+   ``results.json`` (with each seed's restarts while it trained: envs re-created after a
+   lost Ray node or a failure, trainings re-run), and draw ``return_wallclock.png`` (training return against wall-clock,
    mean over seeds with a 95 % band) and ``objective_per_start.png``.
 
 Everything that decides the numbers is recorded in ``<out>/benchmark.json``; a rerun with
@@ -70,7 +71,7 @@ from gymprecice_lab.benchmark_dispatch import check_ray, run_everywhere, solver_
 from gymprecice_lab.benchmark_scores import controller_entry, start_scores
 from gymprecice_lab.benchmark_settings import lock_settings, settings_of
 from gymprecice_lab.benchmark_tables import write_tables
-from gymprecice_lab.benchmark_training import train_seed, trained, worker_train_seed
+from gymprecice_lab.benchmark_training import restarts, train_seed, trained, worker_train_seed
 from gymprecice_lab.command_runs import evaluated, parse_command, run_in_pool
 from gymprecice_lab.env_kwargs import build_env_kwargs
 from gymprecice_lab.hyperparams import hyperparameters
@@ -219,23 +220,38 @@ def _train_seeds(args: argparse.Namespace, plan: _Plan) -> None:
 
 
 def _evaluate_seeds(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any]]:
-    """Evaluate each seed's final model from every held-out start (those not evaluated
-    already); per algorithm its controller entry over the seeds."""
+    """Evaluate each seed's kept model (the best of its validations) and, where it is
+    another file, its final model, from every held-out start (those not evaluated
+    already); per algorithm a controller entry over the seeds for each.
+
+    The kept model is the learnt entry; the final models' entry beside it shows what
+    keeping the best on validation bought. A seed trained without validation has no
+    kept model: its final model stands in both entries."""
+    from gymprecice_lab.envs import find_model
+
     pending: list[RemoteCommand] = []
     for algo in plan.algos:
         for seed in range(args.seeds):
-            train_dir, run = plan.run("train", algo, seed), plan.run("eval", algo, seed)
-            if not evaluated(run, train_dir / "model.zip"):
+            train_dir = plan.run("train", algo, seed)
+            seen: set[Path] = set()
+            for which, run in _evaluations(plan, algo, seed):
+                model, _ = find_model(train_dir, which)
+                if run in seen or evaluated(run, model):
+                    continue
+                seen.add(run)
                 pending.append(
                     RemoteCommand(
                         [
                             "evaluate",
                             args.env,
                             "--all-starts",
+                            "--model",
+                            which,
                             *common_options(args, args.eval_time),
                         ],
                         run,
-                        f"evaluating {algo} seed {seed}",
+                        f"evaluating {algo} seed {seed}"
+                        + (" (its final model)" if which == "final" else ""),
                         inputs={"--policy": train_dir},
                         cpus=plan.env_cpus,
                     )
@@ -243,13 +259,39 @@ def _evaluate_seeds(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any
     run_everywhere(pending, args)
     controllers = []
     for algo in plan.algos:
-        runs = [
-            start_scores(_summary(plan.run("eval", algo, seed)), plan.env, len(plan.starts))
-            for seed in range(args.seeds)
-        ]
         label = _learned_label(algo, plan.run("train", algo, 0))
-        controllers.append(controller_entry(label, "learned", runs, args.bootstrap_reps))
+        runs = {
+            which: [
+                start_scores(
+                    _summary(dict(_evaluations(plan, algo, seed))[which]),
+                    plan.env,
+                    len(plan.starts),
+                )
+                for seed in range(args.seeds)
+            ]
+            for which in ("kept", "final")
+        }
+        controllers.append(controller_entry(label, "learned", runs["kept"], args.bootstrap_reps))
+        if runs["final"] != runs["kept"]:
+            controllers.append(
+                controller_entry(
+                    f"{label}, final model", "learned, final", runs["final"], args.bootstrap_reps
+                )
+            )
     return controllers
+
+
+def _evaluations(plan: _Plan, algo: str, seed: int) -> list[tuple[str, Path]]:
+    """``(which, run)`` of a seed's evaluations: its kept model's in ``eval/``, and its
+    final model's in ``eval-final/`` where the final model is another file (else the
+    kept model's evaluation stands for both)."""
+    from gymprecice_lab.envs import find_model
+
+    train_dir = plan.run("train", algo, seed)
+    kept = plan.run("eval", algo, seed)
+    if find_model(train_dir, "kept")[0] == find_model(train_dir, "final")[0]:
+        return [("kept", kept), ("final", kept)]
+    return [("kept", kept), ("final", plan.run("eval-final", algo, seed))]
 
 
 def _learned_label(algo: str, train_dir: Path) -> str:
@@ -306,7 +348,12 @@ def _write_results(args: argparse.Namespace, plan: _Plan, controllers: list[dict
     from gymprecice_lab.benchmark_plots import plot_objective_per_start, plot_return_wallclock
 
     out = plan.out
-    write_tables(out, plan.env, plan.starts, controllers)
+    seeds = {
+        f"{algo.upper()} seed {seed}": restarts(plan.run("train", algo, seed))
+        for algo in plan.algos
+        for seed in range(args.seeds)
+    }
+    write_tables(out, plan.env, plan.starts, controllers, seeds)
     plot_return_wallclock(out, plan.algos, args.seeds)
     plot_objective_per_start(
         out / "objective_per_start.png",

@@ -3,14 +3,14 @@
 Three views of the same controller entries (:mod:`gymprecice_lab.benchmark_scores`):
 every score for a program, one row per controller for a spreadsheet, and a table per
 metric, each statistic with its interval, for a reader, headed by what the env and its
-held-out starts are.
+held-out starts are and followed by each seed's restarts while it trained.
 """
 
 from __future__ import annotations
 
 import csv
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -48,16 +48,47 @@ def _fmt(e: dict[str, Any]) -> str:
     return f"{e['value']:.4g} [{e['low']:.4g}, {e['high']:.4g}]"
 
 
-def write_tables(out: Path, env: LabEnv, starts: Sequence[str], controllers: list[dict]) -> None:
-    """``results.json`` (every score), ``results.csv`` and ``results.md``."""
-    metrics = list(dict.fromkeys(m for c in controllers for m in c["metrics"]))
-    (out / "results.json").write_text(
-        json.dumps(
-            {"env": env.env_id, "held_out_starts": list(starts), "controllers": controllers},
-            indent=2,
-        )
-        + "\n"
+def _restarts_note(restarts: Mapping[str, Mapping[str, int]]) -> str:
+    """The line under the tables: each seed's restarts while it trained."""
+    seeds = []
+    for seed, counts in restarts.items():
+        parts = [
+            f"{n} {what}{'s' if n != 1 else ''}"
+            for what, n in (
+                ("env restart", counts.get("env_restarts", 0)),
+                ("training re-run", counts.get("training_reruns", 0)),
+            )
+            if n
+        ]
+        seeds.append(f"{seed}: {', '.join(parts) or 'none'}")
+    return (
+        "Restarts while training, per seed (an env re-created after a lost Ray node or a "
+        "failure; a training re-run from its newest checkpoint after a failure): "
+        + "; ".join(seeds)
+        + "."
     )
+
+
+def write_tables(
+    out: Path,
+    env: LabEnv,
+    starts: Sequence[str],
+    controllers: list[dict],
+    restarts: Mapping[str, Mapping[str, int]] | None = None,
+) -> None:
+    """``results.json`` (every score), ``results.csv`` and ``results.md``; ``restarts``:
+    per seed (``"PPO seed 0"``), its env restarts and training re-runs
+    (:func:`~gymprecice_lab.benchmark_training.restarts`), in the JSON and under the
+    tables."""
+    metrics = list(dict.fromkeys(m for c in controllers for m in c["metrics"]))
+    results: dict[str, Any] = {
+        "env": env.env_id,
+        "held_out_starts": list(starts),
+        "controllers": controllers,
+    }
+    if restarts is not None:
+        results["restarts"] = {seed: dict(counts) for seed, counts in restarts.items()}
+    (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
     fields = ["controller", "kind", "runs", "starts"]
     for m in metrics:
         for s in STATISTICS:
@@ -104,4 +135,6 @@ def write_tables(out: Path, env: LabEnv, starts: Sequence[str], controllers: lis
             lines.append(
                 f"| {c['label']} | {c['kind']} | {c['runs']} | " + " | ".join(cells) + " |"
             )
+    if restarts:
+        lines += ["", _restarts_note(restarts)]
     (out / "results.md").write_text("\n".join(lines) + "\n")

@@ -2,9 +2,12 @@
 
 A seed is never silently dropped from the aggregate: a training that fails (an exit
 status, a crash) is reported and re-run up to ``--retries`` times, each rerun resuming
-from the newest checkpoint; one that still fails stops the benchmark, its attempts
-recorded in ``benchmark-failures.json``. A training stopped by a signal is the user's
-and is not retried. A seed already trained to ``--timesteps`` is kept.
+from the newest checkpoint; one that still fails stops the benchmark. Every failed
+attempt is recorded in the seed's ``benchmark-failures.json`` as it fails, across reruns
+of the benchmark; with the envs its vector env re-created (a lost Ray node, a crashed or
+hung solver: ``workers/failures.jsonl``) they are the seed's restarts that the results
+report (:func:`restarts`). A training stopped by a signal is the user's and is not
+retried. A seed already trained to ``--timesteps`` is kept.
 """
 
 from __future__ import annotations
@@ -16,7 +19,10 @@ from pathlib import Path
 from gymprecice_lab.benchmark_checks import BenchmarkError
 from gymprecice_lab.command_runs import exit_status_of, parse_command
 
-__all__ = ["train_seed", "trained", "worker_train_seed"]
+__all__ = ["restarts", "train_seed", "trained", "worker_train_seed"]
+
+#: a seed's failed training attempts (a JSON list, one line of text each)
+FAILURES_FILE = "benchmark-failures.json"
 
 
 def trained(run: Path, timesteps: int) -> bool:
@@ -58,20 +64,49 @@ def train_seed(argv: list[str], run: Path, label: str, retries: int) -> None:
                 status,
             )
         failures.append(f"attempt {attempt + 1}: {reason}")
+        _record_failure(run, failures[-1])
         print(
             f"gymprecice benchmark: {label}: training failed ({reason})"
             + ("; running it again" if attempt < retries else ""),
             file=sys.stderr,
             flush=True,
         )
-    run.mkdir(parents=True, exist_ok=True)
-    (run / "benchmark-failures.json").write_text(json.dumps(failures, indent=2) + "\n")
     raise BenchmarkError(
         f"{label}: training failed {len(failures)} time(s) ({'; '.join(failures)}); no table "
         f"is written without it (see {run}); fix the cause and run the same command again "
         "(finished seeds are kept)",
         1,
     )
+
+
+def _record_failure(run: Path, failure: str) -> None:
+    """Add a failed attempt to the seed's record (kept across reruns of the benchmark)."""
+    run.mkdir(parents=True, exist_ok=True)
+    path = run / FAILURES_FILE
+    try:
+        earlier = json.loads(path.read_text())
+    except (OSError, ValueError):
+        earlier = []
+    path.write_text(json.dumps([*earlier, failure], indent=2) + "\n")
+
+
+def restarts(run: Path) -> dict[str, int]:
+    """How often the training in ``run`` was restarted: ``"env_restarts"``, envs its
+    vector env re-created (each line of its ``workers/failures.jsonl``: a lost Ray node, a
+    crashed or hung solver), and ``"training_reruns"``, times it was re-run from its
+    newest checkpoint after it failed."""
+    from gymprecice.vector.pool import FAILURES_FILE as ENV_FAILURES
+
+    def count(path: Path, read) -> int:
+        try:
+            return len(read(path.read_text()))
+        except (OSError, ValueError):
+            return 0
+
+    return {
+        "env_restarts": count(run / "workers" / ENV_FAILURES, str.splitlines),
+        "training_reruns": count(run / FAILURES_FILE, json.loads),
+    }
 
 
 def worker_train_seed(argv: list[str], run: str, label: str, retries: int) -> int:

@@ -1,5 +1,5 @@
-"""``gymprecice train | evaluate | baseline | open-loop | feedback | sweep | compare | benchmark
-| time-to-floor | plot | ship-policy | policies``.
+"""``gymprecice train | tune | evaluate | baseline | open-loop | feedback | sweep | compare
+| benchmark | time-to-floor | plot | ship-policy | policies``.
 
 Added to the ``gymprecice`` command line by the lab's plugin. ENV is any environment id
 that an installed package registers (or the short name its lab card gives it,
@@ -10,13 +10,14 @@ an environment writes into one output directory (``--out``, default
 case file hashes, seeds, command line), so the directory alone says how it was made::
 
     gymprecice train jet-cylinder --n-envs 4 --timesteps 100000
-    gymprecice evaluate jet-cylinder --time 10
-    gymprecice baseline jet-cylinder --time 10
+    gymprecice tune jet-cylinder-fast --algo sac --trials 12     # Optuna, resumable
+    gymprecice evaluate jet-cylinder --episode-time 10
+    gymprecice baseline jet-cylinder --episode-time 10
     gymprecice open-loop jet-cylinder --amplitude 0.5 --frequency 3
     gymprecice feedback jet-cylinder-fast --gain 2 --delay 3 --all-starts
     gymprecice sweep perpendicular-flap-fast            # uncontrolled, constants, sinusoids
     gymprecice benchmark jet-cylinder-fast --seeds 5 --algo ppo,sac --workers 2
-    gymprecice time-to-floor runs/jet-cylinder-fast/train   # when it reached 95 % of the floor
+    gymprecice time-to-floor runs/jet-cylinder-fast/train   # its kept model's share of the floor
     gymprecice compare runs/perpendicular-flap-fast/sweep runs/perpendicular-flap-fast/evaluate
     gymprecice plot runs/jet-cylinder/train runs/jet-cylinder/evaluate \\
         --baseline runs/jet-cylinder/baseline
@@ -79,6 +80,7 @@ def add_commands(sub: Any) -> None:
 def _commands() -> list[Command]:
     return [
         _train(),
+        _tune(),
         *_rollouts(),
         _sweep(),
         _compare(),
@@ -87,6 +89,81 @@ def _commands() -> list[Command]:
         _plot(),
         *_policies(),
     ]
+
+
+# -- tune --------------------------------------------------------------------------------------
+
+
+def _tune() -> Command:
+    return Command(
+        "tune",
+        "search hyperparameters (Optuna: TPE sampler, median pruner on validation scores)",
+        "Search the hyperparameters of PPO, SAC or TD3 on a registered environment, as RL "
+        "Zoo does: each trial is a `gymprecice train` run in <out>/trials/N, scored by its "
+        "kept model (the best mean return on the env's validation starts; held-out starts "
+        "are never read), and pruned when its validations lag the others'. A trial whose "
+        "solver fails is pruned with its reason recorded. The study is kept in SQLite in "
+        "--out (or --storage): the same command resumes a search killed at any point. "
+        "Writes best_hyperparams.yml (for train --hyperparams), tune.json, history.png and "
+        "importance.png.",
+        (
+            o.env_argument(),
+            o.OUT.but(help="output directory (None: runs/<env>/tune)"),
+            o.DOUBLE.but(help="tune on the test double (no solvers; tests and dry runs)"),
+            o.SEED,
+            o.EPISODE_TIME,
+            o.ENV_KWARGS,
+            o.ALGO.but(default="sac"),
+            option("--trials", type=positive_int, default=20, help="trials in the study"),
+            option(
+                "--timesteps",
+                type=positive_int,
+                default=2_000,
+                help="env steps per trial (each trial trains from scratch)",
+            ),
+            option(
+                "--n-envs", type=positive_int, default=1, help="parallel environments per trial"
+            ),
+            option(
+                "--validate-every",
+                type=positive_int,
+                default=400,
+                metavar="STEPS",
+                help="validate (and report to the pruner) every this many env steps",
+            ),
+            option(
+                "--params",
+                type=lambda text: [p.strip() for p in text.split(",") if p.strip()],
+                default=None,
+                metavar="NAME,...",
+                help="search only these parameters of the algorithm's space; the others keep "
+                "their defaults (None: all of them)",
+            ),
+            option(
+                "--hyperparams",
+                type=Path,
+                default=None,
+                metavar="FILE.yaml",
+                help="hyperparameters every trial keeps (the search does not vary them)",
+            ),
+            option(
+                "--storage",
+                default=None,
+                metavar="URL",
+                help="an Optuna storage URL shared by searches on several machines, e.g. "
+                "postgresql://user@host/db (None: sqlite:///<out>/study.db)",
+            ),
+            option("--study-name", default=None, help="the study's name (None: <env>-<algo>)"),
+            option(
+                "--n-jobs",
+                type=positive_int,
+                default=1,
+                help="trials at once, each in its own process on the same study",
+            ),
+            option("--no-progress-bar", action="store_true", help="no progress bar"),
+        ),
+        functools.partial(_run, "tune"),
+    )
 
 
 # -- train -------------------------------------------------------------------------------------
@@ -158,11 +235,22 @@ _KEEPING = (
         type=positive_int,
         default=None,
         metavar="STEPS",
-        help="every this many env steps, evaluate deterministically on a separate env "
-        "(from the held-out starts, in turn) and keep best_model.zip (None: no evaluation "
-        "during training)",
+        help="every this many env steps, score the policy deterministically from the "
+        "env's validation starts (never its held-out ones) on a separate env, and keep "
+        "the best as best_model.zip, the model evaluate, ship-policy, benchmark and "
+        "time-to-floor take (None: at every checkpoint, and once more at the end)",
     ),
-    option("--n-eval-episodes", type=positive_int, default=2, help="episodes per evaluation"),
+    option(
+        "--n-eval-episodes",
+        type=positive_int,
+        default=None,
+        help="episodes per validation (None: one from each validation start)",
+    ),
+    option(
+        "--no-validation",
+        action="store_true",
+        help="no validation during training: only the final model.zip is left",
+    ),
     o.FRESH,
     option(
         "--vec-env",
@@ -212,7 +300,16 @@ def _rollouts() -> list[Command]:
             "Run a trained policy (deterministic: its mean action) for whole "
             "episodes and write history.csv, coefficients.csv and summary.json (mean and std "
             "over the episodes; the % change against --baseline when given).",
-            (*env, o.POLICY, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.STOCHASTIC, o.BASELINE),
+            (
+                *env,
+                o.POLICY,
+                o.MODEL,
+                o.EPISODES,
+                o.ALL_STARTS,
+                o.VIDEO,
+                o.STOCHASTIC,
+                o.BASELINE,
+            ),
             functools.partial(_run, "evaluate"),
         ),
         Command(
@@ -400,15 +497,15 @@ def _benchmark() -> Command:
 def _time_to_floor() -> Command:
     return Command(
         "time-to-floor",
-        "how soon training runs reached 90 / 95 %% of their env's reference floor",
-        "Evaluate each training run's checkpoints in order, deterministically "
-        "from every held-out start, until one reaches the highest --fractions of the "
-        "floor of the env's reference (its lab card's 'reference': the drop of a metric "
-        "from its uncontrolled value to the best it can reach) once settled; print the "
-        "wall-clock from the training command's start to the first checkpoint reaching "
-        "each fraction and, over several runs (seeds), the median with a 95 % bootstrap "
-        f"interval. Writes time_to_floor.json and .csv. {_reference_listing()} See "
-        "docs/benchmark.md.",
+        "how far and how soon training runs reached 90 / 95 %% of their env's reference floor",
+        "Evaluate each training run's kept model (--model: or its final model, or its "
+        "checkpoints in order until one reaches the highest --fractions), deterministically "
+        "from every held-out start, against the floor of the env's reference (its lab "
+        "card's 'reference': the drop of a metric from its uncontrolled value to the best "
+        "it can reach) once settled; print the fraction reached and the wall-clock from the "
+        "training command's start to the model's save and, over several runs (seeds), the "
+        "median with a 95 % bootstrap interval. Writes time_to_floor.json and .csv. "
+        f"{_reference_listing()} See docs/benchmark.md.",
         (
             o.runs_argument("training directories"),
             option(
@@ -428,6 +525,13 @@ def _time_to_floor() -> Command:
             o.OUT.but(help="output (None: <first RUN>/time-to-floor)"),
             o.DOUBLE.but(help="evaluate on the test double (tests)"),
             o.workers_option("checkpoints evaluated at once, each on its own core"),
+            option(
+                "--model",
+                choices=("kept", "final", "checkpoints"),
+                default="kept",
+                help="the model of each run: the kept one (the best of its validations), the "
+                "final one, or every checkpoint in order until one reaches the highest fraction",
+            ),
         ),
         functools.partial(_run, "time-to-floor"),
     )
@@ -469,9 +573,9 @@ def _policies() -> list[Command]:
     return [
         Command(
             "ship-policy",
-            "copy a training run's final policy into the package (small: for evaluation)",
-            "Copy a `gymprecice train` run's final model (its model.zip, else its "
-            "newest checkpoint) into the package's shipped policies as NAME: the model without "
+            "copy a training run's kept policy into the package (small: for evaluation)",
+            "Copy a `gymprecice train` run's kept model (the best of its validations; "
+            "--model final: its model.zip, else its newest checkpoint) into the package's shipped policies as NAME: the model without "
             "the optimizer state (PPO.load still reads it), the VecNormalize statistics and "
             "policy.json (training env and action bound, training command, timesteps, "
             "wall-clock time, source revision, checksums, and the --evaluation result). Then "
@@ -500,9 +604,10 @@ def _policies() -> list[Command]:
                     "--checkpoint",
                     default=None,
                     metavar="best|STEPS",
-                    help="ship a checkpoint instead of the final model: 'best' (highest mean "
+                    help="ship a checkpoint instead of the kept model: 'best' (highest mean "
                     "training return, checkpoints/best.json) or a step count",
                 ),
+                o.MODEL,
                 option("--force", action="store_true", help="replace a policy of that name"),
             ),
             functools.partial(_run, "ship-policy"),
@@ -552,6 +657,7 @@ def _reference_listing() -> str:
 #: in one line what to install, and no output directory is left behind.
 _IMPORTS_FIRST: dict[str, tuple[str, ...]] = {
     "train": ("yaml", "stable_baselines3", "torch"),
+    "tune": ("yaml", "optuna"),
     "evaluate": ("stable_baselines3",),
     "benchmark": ("yaml", "stable_baselines3", "torch"),
 }
@@ -565,6 +671,10 @@ def _run(command: str, args: argparse.Namespace) -> int:
         from gymprecice_lab.train import train_command
 
         return train_command(args)
+    if command == "tune":
+        from gymprecice_lab.tune import tune_command
+
+        return tune_command(args)
     if command in ("evaluate", "baseline", "open-loop", "feedback"):
         from gymprecice_lab.evaluate import rollout_command
 

@@ -5,13 +5,20 @@ runs the baselines with ``gymprecice sweep``; ``time-to-floor`` evaluates checkp
 piece is the ordinary command, parsed by the same parsers (so with the same defaults) and
 run here or ``workers`` at once in spawned processes, its output directory its record:
 :func:`evaluated` tells a finished evaluation of a model from one still to run, so a
-stopped composite command resumes where it stopped.
+stopped composite command resumes where it stopped. A worker process dies with the command
+that started it (:func:`die_with_parent`): a command killed outright (SIGKILL, the OOM
+killer, a job's time limit) leaves no worker computing on into the directories that the
+same command, run again, works in.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import ctypes
 import json
+import os
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -20,6 +27,7 @@ from typing import Any
 __all__ = [
     "CommandFailed",
     "command_status",
+    "die_with_parent",
     "evaluated",
     "exit_status_of",
     "parse_command",
@@ -66,17 +74,45 @@ def exit_status_of(call: Callable[..., Any], *args: Any) -> int:
 
 
 def evaluated(run: Path, model: Path) -> bool:
-    """Whether ``run`` holds a finished ``gymprecice evaluate`` of ``model`` (its summary,
-    and a manifest recording that model's SHA-256)."""
+    """Whether ``run`` holds a finished ``gymprecice evaluate`` of ``model``: its summary,
+    and a manifest recording that model's SHA-256 and the result.
+
+    The evaluation writes its manifest when it starts and again, with the result, once
+    ``summary.json`` is whole; an evaluation killed before the end leaves the first
+    manifest (and perhaps an earlier evaluation's summary, or a summary cut short), so
+    without the result it is not finished.
+    """
     from gymprecice_lab.manifest import file_sha256
 
     try:
         manifest = json.loads((run / "manifest.json").read_text())
     except (OSError, ValueError):
         return False
-    return (run / "summary.json").is_file() and manifest.get("settings", {}).get(
-        "model_sha256"
-    ) == file_sha256(model)
+    return (
+        (run / "summary.json").is_file()
+        and manifest.get("result") is not None
+        and manifest.get("settings", {}).get("model_sha256") == file_sha256(model)
+    )
+
+
+def die_with_parent(parent: int) -> None:
+    """Run first in a worker process: SIGKILL it when its parent, ``parent``, dies.
+
+    A worker (``spawn``) does not die with the command that started it: killed outright,
+    the command would leave its workers running their evaluations or rollouts to the end
+    (their solvers with them), writing into the directories the rerun of the command
+    works in. Linux's ``PR_SET_PDEATHSIG`` ends them (their own solvers then die with
+    them, :mod:`gymprecice.owner_watchdog`); a parent that died before the request took
+    effect is seen by the worker's parent no longer being ``parent``. The request holds
+    while the *thread* that started the worker lives: the main thread, or a pool's
+    worker handler, which lives until the pool has every result.
+    """
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            pr_set_pdeathsig = 1
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
+    if os.getppid() != parent:
+        os._exit(1)
 
 
 def _worker_status(argv: list[str]) -> int:
@@ -116,7 +152,12 @@ def run_in_pool(
     context = multiprocessing.get_context("spawn")  # never fork a process holding threads
     failures = []
     with stop_signals_interrupt():
-        pool = context.Pool(min(workers, len(jobs)), maxtasksperchild=1)
+        pool = context.Pool(
+            min(workers, len(jobs)),
+            initializer=die_with_parent,
+            initargs=(os.getpid(),),
+            maxtasksperchild=1,
+        )
         try:
             pending = [(pool.apply_async(task, args), what) for args, what in jobs]
             for result, what in pending:

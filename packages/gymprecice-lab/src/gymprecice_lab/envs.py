@@ -132,6 +132,7 @@ def make_env(
     rescale: bool = True,
     robustness: Mapping[str, Any] | None = None,
     held_out: bool = False,
+    validation: tuple[int, int] | None = None,
 ) -> gym.Env:
     """One environment as training and evaluation see it (module level: picklable).
 
@@ -141,8 +142,10 @@ def make_env(
     ``robustness`` (:mod:`gymprecice.robustness`: sensor and action noise, delay,
     dropout) sits between the policy and the rescaled env, so noise is in the policy's
     units; the vector env's ``seed`` seeds it. ``held_out`` makes every reset take the
-    env's held-out starts in turn (:class:`gymprecice_lab.starts.HeldOutStarts`: the
-    ``--eval-freq`` env).
+    env's held-out starts in turn (:class:`gymprecice_lab.starts.HeldOutStarts`);
+    ``validation=(part, parts)`` its share of the validation starts
+    (:class:`gymprecice_lab.starts.ValidationStarts`: the envs that choose the model a
+    training run keeps).
     """
     import gymprecice  # noqa: F401  (registers the gymprecice/... ids in this process)
 
@@ -151,6 +154,10 @@ def make_env(
         from gymprecice_lab.starts import HeldOutStarts
 
         env = HeldOutStarts(env)
+    if validation is not None:
+        from gymprecice_lab.starts import ValidationStarts
+
+        env = ValidationStarts(env, *validation)
     keywords = episode_keywords(env_id)
     env = EpisodeMetrics(env, keywords[:-1])
     space = env.action_space
@@ -283,18 +290,23 @@ def load_normalizer(model_path: Path) -> Any:
     return stats
 
 
-def find_model(path: Path) -> tuple[Path, str | None]:
+def find_model(path: Path, which: str = "kept") -> tuple[Path, str | None]:
     """The model file for ``path`` (a ``.zip`` or a training directory) and a note.
 
-    A directory gives its ``model.zip``; a run stopped before writing one (killed, out of
-    time) gives its newest checkpoint, with a note saying so. ``FileNotFoundError``
-    explains what was looked for.
+    A training directory gives its kept model (the best of its validations,
+    :mod:`gymprecice_lab.kept_model`) with ``which="kept"``, else or failing that its
+    ``model.zip``, and the note says which; a run stopped before writing either (killed,
+    out of time) gives its newest checkpoint, with a note saying so.
+    ``FileNotFoundError`` explains what was looked for.
     """
+    from gymprecice_lab.kept_model import choose_model
+
     if path.is_file():
         return path, None
     if path.is_dir():
-        if (path / "model.zip").is_file():
-            return path / "model.zip", None
+        chosen = choose_model(path, which)
+        if chosen is not None:
+            return chosen
         newest = newest_checkpoint(path / "checkpoints")
         if newest is not None:
             return newest[0], f"no model.zip in {path}; using its newest checkpoint {newest[0]}"
@@ -303,15 +315,100 @@ def find_model(path: Path) -> tuple[Path, str | None]:
 
 
 def newest_checkpoint(directory: Path) -> tuple[Path, int] | None:
-    """The checkpoint with the most env steps in ``directory`` (``None`` if there is none)."""
-    best: tuple[Path, int] | None = None
+    """The intact checkpoint with the most env steps in ``directory`` (``None``: none).
+
+    A run killed while it wrote a checkpoint (SIGKILL, the OOM killer, a job's time limit,
+    a full disk) leaves it torn: a zip cut before its central directory, a replay buffer or
+    ``VecNormalize`` pickle cut before its end, or one of them never written. Resuming from
+    it would fail, or silently train on without its replay buffer; so a torn checkpoint is
+    passed over with one line on stderr naming the torn file and the checkpoint used instead.
+    """
+    import sys
+
     if not directory.is_dir():
         return None
+    found = []
     for path in directory.iterdir():
         match = _CHECKPOINT.match(path.name)
-        if match and (best is None or int(match["steps"]) > best[1]):
-            best = (path, int(match["steps"]))
-    return best
+        if match:
+            found.append((int(match["steps"]), path))
+    found.sort(key=lambda item: (-item[0], item[1].name))
+    torn: list[str] = []
+    chosen: tuple[Path, int] | None = None
+    for steps, path in found:
+        problem = _torn_checkpoint(path, steps, [p for s, p in found if s != steps])
+        if problem is None:
+            chosen = (path, steps)
+            break
+        torn.append(problem)
+    instead = f"using {chosen[0]} instead" if chosen else "no intact checkpoint is left"
+    for problem in torn:
+        print(f"gymprecice: {problem}; {instead}", file=sys.stderr)
+    return chosen
+
+
+#: Pickles up to this size are checked opcode by opcode; larger ones by their last byte.
+_WALKED_PICKLE_BYTES = 64 * 1024 * 1024
+
+
+def _torn_checkpoint(path: Path, steps: int, others: list[Path]) -> str | None:
+    """What is torn in the checkpoint ``path`` (``None``: it is intact).
+
+    Its companions are its ``VecNormalize`` statistics and replay buffer: checked where
+    they exist, and missing where another checkpoint has its own (a run saves the same
+    files each time, the zip first).
+    """
+    if not _zip_intact(path):
+        return f"checkpoint {path} is torn (not a complete zip archive)"
+    prefix = path.name.split("_", 1)[0]
+    for companion in (_replay_buffer_path, vecnormalize_path):
+        extra = companion(path)
+        if extra.is_file():
+            if not _pickle_intact(extra):
+                return f"checkpoint {path} is torn ({extra.name} is cut short)"
+        elif any(companion(other).is_file() for other in others if other.name.startswith(prefix)):
+            return f"checkpoint {path} is torn ({extra.name} was never written)"
+    return None
+
+
+def _replay_buffer_path(model: Path) -> Path:
+    """``<algo>_replay_buffer_<steps>_steps.pkl`` beside a checkpoint (SB3's name)."""
+    match = _CHECKPOINT.match(model.name)
+    if not match:
+        return model.with_name(f"{model.stem}_replay_buffer.pkl")
+    return model.with_name(f"{match['prefix']}_replay_buffer_{match['steps']}_steps.pkl")
+
+
+def _zip_intact(path: Path) -> bool:
+    """A readable zip whose members all match their CRCs, with SB3's ``data`` in it."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return "data" in archive.namelist() and archive.testzip() is None
+    except (OSError, EOFError, zipfile.BadZipFile, ValueError, RuntimeError):
+        return False
+
+
+def _pickle_intact(path: Path) -> bool:
+    """Whether a pickle reaches its STOP opcode, without building any object from it."""
+    import pickletools
+
+    try:
+        size = path.stat().st_size
+        with path.open("rb") as handle:
+            if size < 2 or handle.read(1) != b"\x80":  # PROTO: protocol 2 or later
+                return False
+            if size > _WALKED_PICKLE_BYTES:
+                handle.seek(-1, os.SEEK_END)
+                return handle.read(1) == b"."
+            handle.seek(0)
+            for opcode, _, _ in pickletools.genops(handle):
+                if opcode.name == "STOP":
+                    return True
+    except Exception:  # a cut opcode or argument: ValueError, struct.error, EOFError, ...
+        return False
+    return False
 
 
 def load_model(path: Path, device: str = "cpu") -> Any:
@@ -331,11 +428,13 @@ def load_policy(
     *,
     idx: int = 0,
     device: str = "cpu",
+    which: str = "kept",
     **env_kwargs: Any,
 ) -> tuple[Any, Any]:
     """``(vec_env, model)``: the env ``gymprecice train`` trained on, and the model in it.
 
-    ``model`` is a ``.zip`` or a training directory (see :func:`find_model`); ``env`` a
+    ``model`` is a ``.zip`` or a training directory (see :func:`find_model`: its kept
+    model, or with ``which="final"`` its final one); ``env`` a
     registered id or short name; ``env_kwargs`` go to the env (e.g. ``double=True``,
     ``episode_time=10``). The vector env rescales actions like training did and, when the
     model was trained with ``--normalize``, normalises observations with the saved
@@ -347,7 +446,7 @@ def load_policy(
 
     from gymprecice_lab.shared import per_row
 
-    path, _ = find_model(Path(model))
+    path, _ = find_model(Path(model), which)
     spec = find_lab_env(env)
     loaded = load_model(path, device=device)
     venv: Any = DummyVecEnv([lambda: make_env(spec.env_id, idx, env_kwargs)])

@@ -456,7 +456,11 @@ def _policy(args: argparse.Namespace, env: LabEnv) -> Policy:
     """The policy to evaluate (``--policy``/``--model``, default ``runs/<env>/train``)."""
     spec = getattr(args, "policy", None)
     try:
-        policy = resolve_policy(spec if spec is not None else default_out(env, "train"), env)
+        policy = resolve_policy(
+            spec if spec is not None else default_out(env, "train"),
+            env,
+            which=getattr(args, "model", "kept"),
+        )
     except PolicyError as exc:
         hint = ""
         if spec is None:

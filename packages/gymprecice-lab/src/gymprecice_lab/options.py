@@ -39,6 +39,7 @@ __all__ = [
     "N_ENVS",
     "OPEN_LOOP",
     "OUT",
+    "MODEL",
     "POLICY",
     "RAY",
     "REQUIRE_SOLVERS",
@@ -258,15 +259,41 @@ VIDEO = option(
 
 POLICY = option(
     "--policy",
-    "--model",
     dest="policy",
     metavar="NAME|PATH",
     default=None,
-    help="the policy: a model .zip, a training directory (its model.zip, else its "
-    "newest checkpoint), the name of a policy shipped with the package (`gymprecice "
-    "policies` lists them; ./NAME for a directory of that name) or `shipped` (the one "
-    "shipped for ENV). On another env than its training env a policy keeps its "
-    "training action bound (None: runs/<env>/train)",
+    help="the policy: a model .zip, a training directory (its kept model, else its "
+    "model.zip, else its newest checkpoint: --model says which), the name of a policy "
+    "shipped with the package (`gymprecice policies` lists them; ./NAME for a directory "
+    "of that name) or `shipped` (the one shipped for ENV). On another env than its "
+    "training env a policy keeps its training action bound (None: runs/<env>/train)",
+)
+
+
+class _ModelAction(argparse.Action):
+    """``--model kept|final``; any other value is a policy, as ``--model PATH`` always
+    was (the older spelling of ``--policy PATH``)."""
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option_string: Any = None) -> None:
+        from gymprecice_lab.kept_model import MODEL_CHOICES
+
+        if values in MODEL_CHOICES:
+            namespace.model = values
+        elif hasattr(namespace, "policy"):
+            namespace.policy = values
+        else:
+            parser.error(f"{option_string} takes {' or '.join(MODEL_CHOICES)}, got {values!r}")
+
+
+MODEL = option(
+    "--model",
+    dest="model",
+    action=_ModelAction,
+    default="kept",
+    metavar="kept|final",
+    help="which model of a training run: the kept one (the best of the run's validations, "
+    "on starts disjoint from the held-out ones) or the final one; the line printed says "
+    "which was taken (a path here is taken as --policy)",
 )
 STOCHASTIC = option("--stochastic", action="store_true", help="sample actions instead")
 

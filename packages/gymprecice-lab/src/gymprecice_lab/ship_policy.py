@@ -24,6 +24,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from gymprecice_lab.kept_model import KEPT_MODEL, read_kept
 from gymprecice_lab.lab_env import LabEnv, LabEnvError, find_lab_env
 from gymprecice_lab.policy_env import MACHINE_KWARGS, describe_env
 from gymprecice_lab.policy_format import (
@@ -52,11 +53,13 @@ def ship_policy(
     directory: str | os.PathLike[str] | None = None,
     force: bool = False,
     checkpoint: str | None = None,
+    which: str = "kept",
 ) -> Path:
-    """Copy a training run's final model into the shipped policies as ``name`` (default:
+    """Copy a training run's kept model into the shipped policies as ``name`` (default:
     the training env's name); return the policy's directory.
 
-    ``train_dir`` is a ``gymprecice train`` output (its ``model.zip``, else its newest
+    ``train_dir`` is a ``gymprecice train`` output (its kept model, the best of its
+    validations; ``which="final"``: its ``model.zip``; failing both, its newest
     checkpoint); ``checkpoint`` picks one of its checkpoints instead: ``"best"`` (the one
     with the highest mean training return, ``checkpoints/best.json``: chosen by training,
     never by an evaluation) or a step count. ``evaluation`` a ``gymprecice evaluate``
@@ -81,7 +84,7 @@ def ship_policy(
         raise PolicyError(
             f"a policy {name!r} is shipped already ({dest}); add --force to replace it"
         )
-    source = _source(train_dir, checkpoint)
+    source = _source(train_dir, checkpoint, which)
     described = describe_env(env, settings.get("env_kwargs", {}))
     model = load_model(source)
     obs_shape = tuple(model.observation_space.shape)
@@ -141,15 +144,15 @@ def _policy_name(name: str) -> str:
     return name
 
 
-def _source(train_dir: Path, checkpoint: str | None) -> Path:
-    """The model to ship: the checkpoint named, else the run's final model (or its
-    newest checkpoint, said in one line)."""
+def _source(train_dir: Path, checkpoint: str | None, which: str = "kept") -> Path:
+    """The model to ship: the checkpoint named, else the run's kept model (``which``
+    ``"final"``: its final one; failing both, its newest checkpoint), said in one line."""
     from gymprecice_lab.envs import find_model
 
     if checkpoint is not None:
         return _checkpoint(train_dir, checkpoint)
     try:
-        source, note = find_model(train_dir)
+        source, note = find_model(train_dir, which)
     except FileNotFoundError as exc:
         raise PolicyError(str(exc)) from None
     if note:
@@ -239,7 +242,10 @@ def _training_record(
     result = manifest.get("result") or {}
     kwargs = {k: v for k, v in settings.get("env_kwargs", {}).items() if k not in MACHINE_KWARGS}
     model_sha = sha(source)
-    recorded = result.get("model_sha256")
+    kept = read_kept(train_dir) if source == train_dir / KEPT_MODEL else None
+    # the checksum train recorded of this very file: the kept model's, or model.zip's
+    recorded = (result.get("kept") or {}).get("model_sha256") if kept else None
+    recorded = recorded or (None if kept else result.get("model_sha256"))
     return {
         "command": _command_line(
             segments[0].get("argv") or manifest.get("argv"), manifest.get("cwd")
@@ -259,6 +265,12 @@ def _training_record(
         "model": source.relative_to(train_dir).as_posix(),
         "model_sha256": model_sha,
         "manifest_model_sha256_matches": (recorded == model_sha) if recorded else None,
+        # the kept model: the best of the run's validations, and what chose it
+        "kept": (
+            {k: kept.get(k) for k in ("timesteps", "mean_return", "score", "starts")}
+            if kept
+            else None
+        ),
     }
 
 
@@ -332,6 +344,7 @@ def ship_command(args: argparse.Namespace) -> int:
             directory=args.into,
             force=args.force,
             checkpoint=args.checkpoint,
+            which=args.model,
         )
     except PolicyError as exc:
         print(f"gymprecice ship-policy: {exc}", file=sys.stderr)

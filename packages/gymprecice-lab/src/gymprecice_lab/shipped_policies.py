@@ -153,9 +153,11 @@ def resolve_policy(
     env: str | LabEnv | None = None,
     *,
     directory: str | os.PathLike[str] | None = None,
+    which: str = "kept",
 ) -> Policy:
     """The policy ``--policy`` names: a shipped name, ``shipped`` (the one named after
-    ``env``) or a path (model ``.zip``, training directory, policy directory)."""
+    ``env``) or a path (model ``.zip``, training directory, policy directory); of a
+    training directory its kept model, or with ``which="final"`` its final one."""
     from gymprecice_lab.envs import find_model
 
     text = os.fspath(spec)
@@ -183,7 +185,7 @@ def resolve_policy(
             )
         raise PolicyError(f"no policy at {path}: no such file or directory")
     try:
-        model, note = find_model(path)
+        model, note = find_model(path, which)
     except FileNotFoundError as exc:
         raise PolicyError(str(exc)) from None
     if (model.parent / METADATA_NAME).is_file():

@@ -24,17 +24,29 @@ import gymnasium as gym
 
 __all__ = [
     "SEED_STARTS",
+    "VALIDATION_SEED",
     "HeldOutStarts",
     "StartsError",
+    "ValidationStarts",
     "describe_starts",
     "evaluation_starts",
     "held_out_starts",
     "seed_start_label",
     "start_options",
+    "validation_options",
+    "validation_starts",
 ]
 
 #: how many seeds stand for the starts of an env without held-out starts
 SEED_STARTS = 5
+
+#: the first seed of the validation starts the lab derives for an env that declares none:
+#: far from the seeds that stand for held-out starts (``0 .. SEED_STARTS - 1``) and from
+#: the training envs' seeds (the run's ``--seed`` plus the env's index)
+VALIDATION_SEED = 1_000_003
+
+#: how many validation starts the lab derives for an env that declares none
+DERIVED_VALIDATION_STARTS = 3
 
 
 class StartsError(ValueError):
@@ -100,6 +112,93 @@ def evaluation_starts(env: gym.Env, seed: int = 0) -> tuple[str, ...]:
     """The starts every controller is evaluated from: ``env``'s held-out starts, else the
     seeds ``seed .. seed + SEED_STARTS - 1`` (their labels)."""
     return held_out_starts(env) or tuple(seed_start_label(seed + k) for k in range(SEED_STARTS))
+
+
+def validation_starts(env: gym.Env) -> tuple[str, ...]:
+    """Labels of the starts that choose among models (the model a training run keeps).
+
+    An env whose lab card declares ``validation_starts`` names them in its
+    ``validation_starts`` property and takes ``reset(options={"split": "validation",
+    "start": k})``: disjoint from its held-out starts and from what training draws.
+
+    An env that declares none gets :data:`DERIVED_VALIDATION_STARTS` seeds from
+    :data:`VALIDATION_SEED` on, labelled ``validation seed s``: of the evaluation split
+    where the env has no held-out starts (its test starts are that split's first seeds,
+    never these), else of the training split, since every start of its evaluation split
+    is held out; the training envs never reset with these seeds. The held-out starts
+    never choose a model: no path here reads them.
+    """
+    env_id = _registered_id(env)
+    labels = tuple(getattr(env.unwrapped, "validation_starts", ()) or ())
+    declared = labels if env_id is None else ()
+    if env_id is not None:
+        from gymprecice.card import card_for
+
+        if card_for(env_id).validation_starts:
+            if not labels:
+                raise StartsError(
+                    f"the lab card of {env_id} declares validation_starts=True, but the env "
+                    "names no validation starts: give its class a validation_starts "
+                    "property (their labels, in the order reset(options={'split': "
+                    "'validation', 'start': k}) takes them), or drop the card field to "
+                    "let the lab derive them from seeds"
+                )
+            declared = labels
+    if declared:
+        return declared
+    return tuple(f"validation seed {VALIDATION_SEED + k}" for k in range(DERIVED_VALIDATION_STARTS))
+
+
+def _declares_validation(env: gym.Env) -> bool:
+    """Whether ``env``'s validation starts are its own (not derived from seeds)."""
+    env_id = _registered_id(env)
+    if env_id is None:
+        return bool(getattr(env.unwrapped, "validation_starts", ()) or ())
+    from gymprecice.card import card_for
+
+    return card_for(env_id).validation_starts
+
+
+def validation_options(env: gym.Env, k: int) -> tuple[int | None, dict[str, Any]]:
+    """``(seed, options)`` of the reset that takes validation start ``k`` (mod their
+    number) of ``env`` (:func:`validation_starts`)."""
+    count = len(validation_starts(env))
+    if _declares_validation(env):
+        return None, {"split": "validation", "start": k % count}
+    split = "train" if held_out_starts(env) else "eval"
+    return VALIDATION_SEED + k % count, {"split": split}
+
+
+class ValidationStarts(gym.Wrapper):
+    """Every reset from the validation starts, in turn (:func:`validation_starts`).
+
+    For SB3's ``EvalCallback``, which resets its env with no options: reset k takes
+    validation start k (mod their number). Derived starts are seeds: each reset reseeds
+    the env with its start's seed, so every evaluation meets the same starts.
+
+    ``part`` of ``parts`` splits the starts between ``parts`` envs that validate side by
+    side: this one takes starts ``part, part + parts, ...`` in turn (``parts`` must divide
+    their number, so that every round of the same number of episodes per env covers
+    every start once whatever the order of the resets).
+    """
+
+    def __init__(self, env: gym.Env, part: int = 0, parts: int = 1) -> None:
+        super().__init__(env)
+        self.labels = validation_starts(env)
+        if parts < 1 or len(self.labels) % parts or not 0 <= part < parts:
+            raise ValueError(
+                f"{len(self.labels)} validation starts cannot be split in {parts} parts"
+            )
+        self._mine = list(range(part, len(self.labels), parts))
+        self._resets = 0
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        k = self._mine[self._resets % len(self._mine)]
+        start_seed, start = validation_options(self.env, k)
+        self._resets += 1
+        return self.env.reset(seed=start_seed, options={**start, **(options or {})})
 
 
 class HeldOutStarts(gym.Wrapper):

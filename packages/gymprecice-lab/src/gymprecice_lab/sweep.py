@@ -22,9 +22,9 @@ negated mean reward per action.
 Every controller's rollout is independent of the others, so ``--workers N`` spreads them
 over N processes, each with its own env (``<out>/envs/env_<k>``) and solver; the table is
 the same as from one worker. A controller's rollout counts as finished once its
-``summary.json`` is written: a sweep that was stopped, or whose worker failed, keeps those
-when run again with the same rollouts (env, its settings, starts, seed) and runs only the
-others.
+``summary.json`` is written: a sweep that was stopped (Ctrl-C, SIGTERM, or killed outright:
+its workers die with it), or whose worker failed, keeps those when run again with the same
+rollouts (env, its settings, starts, seed) and runs only the others.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import argparse
 import csv
 import json
 import math
+import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -43,6 +44,7 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.card import FeedbackLaw, load_object
+from gymprecice_lab.command_runs import die_with_parent
 from gymprecice_lab.env_kwargs import build_env_kwargs
 from gymprecice_lab.envs import make_env_checked
 from gymprecice_lab.evaluate import (
@@ -235,6 +237,12 @@ def run_jobs(spec: dict[str, Any], jobs: Sequence[SweepJob], index: int) -> None
             env.close()
 
 
+def _run_share(parent: int, spec: dict[str, Any], jobs: Sequence[SweepJob], index: int) -> None:
+    """:func:`run_jobs` in a worker process that dies with the sweep (``parent``)."""
+    die_with_parent(parent)
+    run_jobs(spec, jobs, index)
+
+
 def _finished(out: Path, job: SweepJob, episodes: int) -> dict[str, Any] | None:
     """The summary of a controller that this sweep (or an earlier run of it) finished."""
     try:
@@ -267,7 +275,9 @@ def _run_workers(spec: dict[str, Any], jobs: list[SweepJob], workers: int) -> No
         return
     context = multiprocessing.get_context("spawn")  # never fork a process holding threads
     processes = [
-        context.Process(target=run_jobs, args=(spec, jobs[w::workers], w), name=f"sweep-{w}")
+        context.Process(
+            target=_run_share, args=(os.getpid(), spec, jobs[w::workers], w), name=f"sweep-{w}"
+        )
         for w in range(workers)
     ]
     from gymprecice_lab.callbacks import stop_signals_interrupt
@@ -497,7 +507,10 @@ def _write(out: Path, results: list[SweepResult], env_info: LabEnv) -> None:
         "best_sinusoid": best(results, "sinusoid").row() if best(results, "sinusoid") else None,
         "best_feedback": best(results, "feedback").row() if best(results, "feedback") else None,
     }
-    (out / "sweep.json").write_text(json.dumps(summary, indent=2) + "\n")
+    # whole or not at all: the benchmark takes a sweep.json as a finished sweep
+    tmp = out / ".sweep.json.partial"
+    tmp.write_text(json.dumps(summary, indent=2) + "\n")
+    os.replace(tmp, out / "sweep.json")
     for kind in ("constant", "sinusoid", "feedback"):
         chosen = best(results, kind)
         if chosen is not None:

@@ -1,4 +1,4 @@
-"""``gymprecice time-to-floor``: how soon a training run controlled the flow.
+"""``gymprecice time-to-floor``: how far and how soon a training run controlled the flow.
 
 An env's physical reference (its lab card's ``reference``, :class:`gymprecice.card.Reference`:
 a cylinder's *drag floor*) says how far control can take its metric, from the uncontrolled
@@ -14,6 +14,11 @@ ordinary ``gymprecice evaluate --all-starts`` run under ``<out>/<steps>``, kept,
 resumes and its numbers can be traced. A short evaluation (``--eval-time``, 4 s: 2 s of
 transient, then 2 s, six shedding periods, of settled flow) keeps the scan cheap; the
 benchmark's table evaluates the final models over 10 s.
+
+By default (``--model kept``) the model scanned is the one the run keeps, the best of its
+validations (:mod:`gymprecice_lab.kept_model`), at the wall-clock of its save: the model a
+user is left with, judged on the held-out starts that never chose it. ``--model final``
+takes the final model; ``--model checkpoints`` scans every checkpoint as above.
 
 Over several runs (the seeds of one recipe) it reports the median time with a 95 %
 bootstrap interval over the runs; a run that never reached a fraction counts as slower
@@ -43,6 +48,7 @@ from gymprecice_lab.lab_env import LabEnv, LabEnvError, find_lab_env
 __all__ = [
     "Checkpoint",
     "RunScan",
+    "candidates",
     "checkpoints",
     "run_started",
     "scan_run",
@@ -72,6 +78,8 @@ class RunScan:
     #: the training's own length (steps, seconds to the last checkpoint)
     last_steps: int = 0
     last_seconds: float = 0.0
+    #: the models scanned: ``kept``, ``final`` or ``checkpoints``
+    which: str = "checkpoints"
 
     def first_reaching(self, fraction: float) -> dict[str, Any] | None:
         """The first checkpoint whose evaluation reaches ``fraction`` of the floor."""
@@ -112,6 +120,30 @@ def run_started(run: Path) -> float:
         if (run / name).is_file():
             return (run / name).stat().st_mtime
     raise FileNotFoundError(f"{run} is not a training run of `gymprecice train` (no manifest)")
+
+
+def candidates(run: Path, which: str) -> list[Checkpoint]:
+    """The models of ``run`` to scan: its kept model, its final one, or its checkpoints
+    (``which``: ``kept``, ``final`` or ``checkpoints``)."""
+    from gymprecice_lab.kept_model import KEPT_MODEL, read_kept
+
+    if which == "checkpoints":
+        return checkpoints(run)
+    started = run_started(run)
+    if which == "kept":
+        record = read_kept(run)
+        if record is None:
+            raise FileNotFoundError(
+                f"no kept model in {run} (best_model.zip and eval/best.json): it trained "
+                "without validation; pass --model final or --model checkpoints"
+            )
+        saved = float(record.get("saved_at") or (run / KEPT_MODEL).stat().st_mtime)
+        return [Checkpoint(int(record["timesteps"]), run / KEPT_MODEL, saved - started)]
+    final = run / "model.zip"
+    if not final.is_file():
+        raise FileNotFoundError(f"no final model.zip in {run}")
+    steps = max((c.steps for c in checkpoints(run)), default=0)
+    return [Checkpoint(steps, final, final.stat().st_mtime - started)]
 
 
 def checkpoints(run: Path) -> list[Checkpoint]:
@@ -165,27 +197,30 @@ def scan_run(
     eval_time: float = 4.0,
     workers: int = 1,
     double: bool = False,
+    which: str = "checkpoints",
 ) -> RunScan:
-    """Evaluate ``run``'s checkpoints in order until one reaches ``max(fractions)``."""
+    """Evaluate ``run``'s models (``which``: :func:`candidates`) in order until one
+    reaches ``max(fractions)``."""
     floor = env.require("reference", "time-to-floor")
-    found = checkpoints(run)
+    found = candidates(run, which)
     if not found:
         raise FileNotFoundError(
             f"no checkpoints in {run / 'checkpoints'}: train with --checkpoint-every"
         )
-    scan = RunScan(run, tuple(fractions), last_steps=found[-1].steps)
+    scan = RunScan(run, tuple(fractions), last_steps=found[-1].steps, which=which)
     scan.last_seconds = found[-1].seconds
     goal = max(fractions)
     for first in range(0, len(found), max(1, workers)):
         batch = found[first : first + max(1, workers)]
+        where = {c.steps: out / (which if which != "checkpoints" else str(c.steps)) for c in batch}
         pending = [
-            _evaluation(env, c, out / str(c.steps), eval_time, double)
+            _evaluation(env, c, where[c.steps], eval_time, double)
             for c in batch
-            if not evaluated(out / str(c.steps), c.model)
+            if not evaluated(where[c.steps], c.model)
         ]
         run_commands(pending, workers, "time-to-floor")
         for c in batch:
-            summary = json.loads((out / str(c.steps) / "summary.json").read_text())
+            summary = json.loads((where[c.steps] / "summary.json").read_text())
             per_start = _settled(summary, floor)
             scan.rows.append(
                 {
@@ -326,6 +361,7 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
                 eval_time=args.eval_time,
                 workers=args.workers,
                 double=args.double,
+                which=args.model,
             )
         except CommandFailed as exc:  # an evaluation failed; it said why
             return int(exc.code or 1)
@@ -333,6 +369,8 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
             print(f"gymprecice time-to-floor: {run}: {exc}", file=sys.stderr)
             return 2
         scans.append(scan)
+        if args.model != "checkpoints":
+            _say_model(run, scan, args.model)
         _say_first(run, scan, fractions)
     summary = summarise(scans, fractions)
     _write(
@@ -343,6 +381,7 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
             "env": env.name,
             "fractions": fractions,
             "eval_time": args.eval_time,
+            "model": args.model,
             "floor": asdict(floor),
         },
     )
@@ -352,12 +391,25 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def _say_model(run: Path, scan: RunScan, which: str) -> None:
+    """The model scanned and its settled fraction of the floor from each held-out start."""
+    row = scan.rows[0]
+    starts = ", ".join(f"{v:.1%}" for v in row["per_start"])
+    print(
+        f"gymprecice time-to-floor: {run.name}: the {which} model ({row['steps']:,} steps, saved "
+        f"{_clock(row['seconds'])} after the training command started): "
+        f"{row['settled_floor_fraction']:.1%} of the floor once settled, the mean over "
+        f"{len(row['per_start'])} held-out start(s) ({starts})"
+    )
+
+
 def _say_first(run: Path, scan: RunScan, fractions: list[float]) -> None:
-    """One line per fraction: the run's first checkpoint that reached it, or none."""
+    """One line per fraction: the run's first model scanned that reached it, or none."""
     for fraction in fractions:
         row = scan.first_reaching(fraction)
+        model = "checkpoint" if scan.which == "checkpoints" else f"the {scan.which} model,"
         where = (
-            f"checkpoint {row['steps']:,} steps, {_clock(row['seconds'])} after the "
+            f"{model} {row['steps']:,} steps, {_clock(row['seconds'])} after the "
             "training command started"
             if row
             else f"not within its {scan.last_steps:,} steps ({_clock(scan.last_seconds)})"

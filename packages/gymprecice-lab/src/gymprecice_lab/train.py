@@ -14,6 +14,11 @@ What a long training run on a shared machine or a cluster needs, and how it is m
   (SB3's logger, with each episode's mean Cd, Cl and action RMS under ``env/``), per-env
   episodes in ``<out>/monitor/env_<i>.monitor.csv`` (what ``gymprecice plot`` draws);
   ``--eval-freq`` evaluates on a separate env and keeps ``best_model.zip``;
+* **the model worth keeping**: at every checkpoint (``--eval-freq``) the policy is scored
+  from the env's validation starts, never its held-out ones, and the best is kept as
+  ``best_model.zip`` beside the final ``model.zip``, with its step, score and wall-clock
+  (:mod:`gymprecice_lab.evaluation_callback`); evaluate, ship-policy, benchmark and
+  time-to-floor take it by default;
 * **traceable**: ``<out>/manifest.json`` with one record per segment (first run and each
   resume), the hyperparameters actually used, the device, the source revision and the
   model's checksum; ``<out>/hyperparams.json`` and a copy of ``--hyperparams``.
@@ -41,6 +46,7 @@ from typing import Any
 from gymprecice_lab import hyperparams as hp
 from gymprecice_lab.env_kwargs import build_env_kwargs
 from gymprecice_lab.envs import newest_checkpoint
+from gymprecice_lab.kept_model import kept_summary
 from gymprecice_lab.lab_env import LabEnvError, default_out, find_lab_env
 from gymprecice_lab.model_based.settings import TRANSITIONS_FILE
 from gymprecice_lab.requirements import require_solvers
@@ -116,6 +122,8 @@ def train_command(args: argparse.Namespace) -> int:
         keep_checkpoints=args.keep_checkpoints,
         eval_freq=args.eval_freq,
         n_eval_episodes=args.n_eval_episodes,
+        validate=not args.no_validation,
+        started_at=started_at,
         resume=resume[0] if resume else None,
         vec_env=args.vec_env,
         ray=getattr(args, "ray", None),
@@ -179,6 +187,9 @@ def _report(result: Mapping[str, Any], out: Path) -> int:
         f"gymprecice train: {result['timesteps']:,} steps; model {result['model']}; "
         f"TensorBoard: tensorboard --logdir {out / 'tb'}"
     )
+    kept = result.get("kept")
+    if kept:
+        print(f"gymprecice train: kept model {kept['model']}: {kept_summary(kept)}")
     return 0
 
 

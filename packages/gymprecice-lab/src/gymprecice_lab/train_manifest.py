@@ -50,6 +50,7 @@ def run_settings(
         "keep_checkpoints": args.keep_checkpoints,
         "eval_freq": args.eval_freq,
         "n_eval_episodes": args.n_eval_episodes,
+        "validation": not getattr(args, "no_validation", False),
         "fresh": args.fresh,
         "vec_env": args.vec_env,
         "device": args.device,

@@ -11,8 +11,9 @@ records. A resume is the same call with the checkpoint to continue from.
 from __future__ import annotations
 
 import math
+import signal
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +44,9 @@ def train(
     checkpoint_every: int | None = None,
     keep_checkpoints: int = 5,
     eval_freq: int | None = None,
-    n_eval_episodes: int = 5,
+    n_eval_episodes: int | None = None,
+    validate: bool = True,
+    started_at: float | None = None,
     resume: Path | None = None,
     vec_env: str = "auto",
     ray: str | None = None,
@@ -61,13 +64,24 @@ def train(
     ``result["interrupted"]`` names the signal. With ``agents`` (``--shared-policy``) one
     policy learns from every agent's row (:mod:`gymprecice_lab.shared`): each env step
     is one learner step per agent, and ``timesteps`` counts those.
+
+    With ``validate`` (the default) the policy is scored from the env's validation starts
+    every ``eval_freq`` env steps (default: at every checkpoint) and once more at the end,
+    and the best is kept as ``best_model.zip`` (:mod:`gymprecice_lab.evaluation_callback`).
     """
-    from gymprecice_lab.callbacks import prune_checkpoints, record_checkpoint
-    from gymprecice_lab.evaluation_callback import eval_callback
+    from gymprecice_lab.callbacks import (
+        hold_stop_signals,
+        prune_checkpoints,
+        record_checkpoint,
+        remove_partial_saves,
+    )
+    from gymprecice_lab.evaluation_callback import eval_callback, validate_final
 
     algo, normalize = params["algo"], bool(params.get("normalize"))
     checkpoints = out / "checkpoints"
     out.mkdir(parents=True, exist_ok=True)
+    remove_partial_saves(out)  # what a save killed mid-way left (SIGKILL after SIGTERM)
+    remove_partial_saves(checkpoints, algo)
     fns = env_fns(env, out, env_kwargs, params, n_envs)
     base = make_vec_env(fns, vec_env, out / "workers", ray)
     slots = n_envs * max(1, len(agents))  # learner steps per env step
@@ -84,22 +98,44 @@ def train(
         done_before = int(model.num_timesteps)
         remaining, target = _steps_to_go(params, slots, timesteps, done_before)
         callbacks = _checkpointing(params, slots, checkpoints, checkpoint_every, keep_checkpoints)
-        if eval_freq:
+        if validate:
+            every = eval_freq or checkpoint_every or 10 * rollout_chunk(params, slots)
             evaluator = eval_callback(
-                env, out, env_kwargs, n_envs, eval_freq, n_eval_episodes, seed, normalize, agents
+                env,
+                out,
+                env_kwargs,
+                n_envs,
+                every,
+                n_eval_episodes,
+                seed,
+                normalize,
+                agents,
+                started_at,
+                vec_env="dummy" if ray is not None else vec_env,
+                training_vec=model.get_env(),
             )
             callbacks.append(evaluator)
         callbacks += telemetry_callbacks(base)
         started = time.monotonic()
-        if remaining > 0:
-            _announce(env, n_envs, algo, target, out, agents)
-            interrupted = _learn(model, remaining, callbacks, out, resume is None, progress_bar)
-        else:
-            interrupted = None
-            print(f"gymprecice train: already trained for {done_before:,} >= {timesteps:,} steps")
-        final = _save(model, vec, checkpoints, out, algo, normalize)
-        record_checkpoint(checkpoints, final, model)
-        prune_checkpoints(checkpoints, algo, keep_checkpoints)
+        # a stop signal outside learning and the last validation waits for the save
+        with hold_stop_signals() as held:
+            if remaining > 0:
+                _announce(env, n_envs, algo, target, out, agents)
+                interrupted = _learn(
+                    model, remaining, callbacks, out, resume is None, progress_bar, held
+                )
+            else:
+                interrupted = None
+                print(
+                    f"gymprecice train: already trained for {done_before:,} >= {timesteps:,} steps"
+                )
+            if evaluator is not None and interrupted is None and not held:
+                interrupted = _validate_final(evaluator, validate_final)
+            final = _save(model, vec, checkpoints, out, algo, normalize)
+            record_checkpoint(checkpoints, final, model)
+            prune_checkpoints(checkpoints, algo, keep_checkpoints)
+        if interrupted is None and held:
+            interrupted = signal.Signals(held[0]).name
         return {
             "timesteps": int(model.num_timesteps),
             "timesteps_requested": timesteps,
@@ -112,10 +148,48 @@ def train(
             "checkpoint": str(final),
             "device": str(model.device),
             "interrupted": interrupted,
+            "kept": _kept(out),
         }
     finally:
         merge_progress(out, segment)
         _close(evaluator, vec)
+
+
+def _validate_final(evaluator: Any, validate_final: Any) -> str | None:
+    """Score the final model on the validation starts; the signal that interrupted it.
+
+    The final model is saved whatever happens here; an interrupted or failed last
+    validation leaves the kept model the best of the earlier ones.
+    """
+    from gymprecice_lab.callbacks import Interrupted, stop_signals_interrupt
+
+    try:
+        with stop_signals_interrupt():
+            validate_final(evaluator)
+    except Interrupted as exc:
+        return str(exc)
+    except KeyboardInterrupt:
+        return "SIGINT"
+    except Exception as exc:  # a solver fault must not lose the final model
+        print(
+            f"gymprecice train: the last validation did not finish ({exc}); the kept model is "
+            "the best of the earlier validations"
+        )
+    return None
+
+
+def _kept(out: Path) -> dict[str, Any] | None:
+    """The kept model's record, with its file's checksum (``None``: none kept)."""
+    from gymprecice_lab.kept_model import read_kept
+
+    record = read_kept(out)
+    if record is None:
+        return None
+    return {
+        **record,
+        "model": str(out / "best_model.zip"),
+        "model_sha256": file_sha256(out / "best_model.zip"),
+    }
 
 
 def rollout_chunk(params: Mapping[str, Any], n_envs: int) -> int:
@@ -176,9 +250,19 @@ def _checkpointing(
 
 
 def _learn(
-    model: Any, steps: int, callbacks: list[Any], out: Path, fresh: bool, progress_bar: bool
+    model: Any,
+    steps: int,
+    callbacks: list[Any],
+    out: Path,
+    fresh: bool,
+    progress_bar: bool,
+    held: Sequence[int] = (),
 ) -> str | None:
-    """Learn for ``steps`` env steps; the signal that interrupted it (None: it finished)."""
+    """Learn for ``steps`` env steps; the signal that interrupted it (None: it finished).
+
+    ``held``: the stop signals that arrived just before, while they were held
+    (:func:`~gymprecice_lab.callbacks.hold_stop_signals`); learning then does not start.
+    """
     from stable_baselines3.common.callbacks import CallbackList
 
     from gymprecice_lab.callbacks import Interrupted, stop_signals_interrupt
@@ -186,6 +270,8 @@ def _learn(
 
     try:
         with stop_signals_interrupt(), PrerunProgress(out / "envs"):
+            if held:
+                raise Interrupted(held[0])
             model.learn(
                 total_timesteps=steps,
                 callback=CallbackList(callbacks),
@@ -202,18 +288,23 @@ def _learn(
 
 
 def _save(model: Any, vec: Any, checkpoints: Path, out: Path, prefix: str, normalize: bool) -> Path:
-    """Save the final checkpoint, ``model.zip`` and their normalisation statistics."""
-    checkpoints.mkdir(parents=True, exist_ok=True)
+    """Save the final checkpoint (with its replay buffer), then ``model.zip``, each with
+    its normalisation statistics, each whole or not at all
+    (:func:`~gymprecice_lab.callbacks.save_checkpoint`): a SIGKILL mid-save leaves the
+    previous checkpoint the newest whole one."""
+    from gymprecice_lab.callbacks import save_checkpoint
+
     final = checkpoints / f"{prefix}_{model.num_timesteps}_steps.zip"
-    model.save(final)
-    model.save(out / "model.zip")
-    if normalize:
-        vec.save(str(vecnormalize_path(final)))
-        vec.save(str(vecnormalize_path(out / "model.zip")))
-    if getattr(model, "replay_buffer", None) is not None:
-        model.save_replay_buffer(
-            checkpoints / f"{prefix}_replay_buffer_{model.num_timesteps}_steps.pkl"
-        )
+    stats = vec if normalize else None
+    save_checkpoint(
+        model,
+        final,
+        replay_buffer=checkpoints / f"{prefix}_replay_buffer_{model.num_timesteps}_steps.pkl",
+        stats=stats,
+        stats_path=vecnormalize_path(final),
+    )
+    model_zip = out / "model.zip"
+    save_checkpoint(model, model_zip, stats=stats, stats_path=vecnormalize_path(model_zip))
     return final
 
 

@@ -392,10 +392,14 @@ def _drop_late_post(run_dir: Path, start: float) -> None:
 
 
 def split_snapshots(names: list[str], options: dict[str, Any]) -> dict[str, list[str]]:
-    """Fixed train/eval split: every m-th snapshot (in time order) is for evaluation.
+    """Fixed split: every m-th snapshot (in time order) is for evaluation.
 
     Interleaving spreads both sets over the phases of a periodic flow. ``eval_fraction``
     (default 0.25) sets m; ``snapshots={"train": [...], "eval": [...]}`` gives it outright.
+    ``validation_fraction`` (default 0: none) takes a third set out of the training
+    snapshots, for choosing among models: with n = 1 / fraction, the snapshot at index
+    n/2 - 1 of every n (for a quarter, the one halfway between two held-out ones), so it
+    too spreads over the phases and is never drawn by training.
     """
     if len(names) == 1:
         return {"train": list(names), "eval": list(names)}
@@ -405,7 +409,24 @@ def split_snapshots(names: list[str], options: dict[str, Any]) -> dict[str, list
     m = max(2, round(1 / fraction))
     ordered = sorted(names, key=float)
     evals = ordered[m - 1 :: m] or ordered[-1:]
-    return {"train": [n for n in ordered if n not in evals], "eval": evals}
+    split = {"train": [n for n in ordered if n not in evals], "eval": evals}
+    validation_fraction = float(options.get("validation_fraction", 0) or 0)
+    if validation_fraction:
+        if not 0 < validation_fraction < 1:
+            raise ConfigError(
+                f"solver option validation_fraction={validation_fraction}: must be in (0, 1)"
+            )
+        n = max(2, round(1 / validation_fraction))
+        chosen = [name for name in ordered[max(0, n // 2 - 1) :: n] if name not in evals]
+        train = [name for name in split["train"] if name not in chosen]
+        if not chosen or not train:
+            raise ConfigError(
+                f"solver option validation_fraction={validation_fraction}: {len(ordered)} "
+                "snapshot(s) leave no validation or no training snapshot; give more snapshots "
+                "or a smaller fraction"
+            )
+        split = {"train": train, "eval": evals, "validation": chosen}
+    return split
 
 
 def _unpark_snapshots(run_dir: Path) -> dict[str, set[str]]:
@@ -446,13 +467,15 @@ def _manifest(run_dir: Path, dirs: list[Path]) -> dict[str, list[int]]:
 
 
 def _snapshot_option(options: dict[str, Any]) -> tuple[list[float], dict[str, list[float]] | None]:
-    """Snapshot times, and the explicit split when the option is ``{"train", "eval"}``."""
+    """Snapshot times, and the explicit split when the option is ``{"train", "eval"}``
+    (and optionally ``"validation"``)."""
     raw = options.get("snapshots") or []
     if isinstance(raw, dict):
-        unknown = set(raw) - {"train", "eval"}
+        unknown = set(raw) - {"train", "eval", "validation"}
         if unknown:
             raise ConfigError(
-                f"solver option snapshots: keys must be 'train' and 'eval', not {sorted(unknown)}"
+                "solver option snapshots: keys must be 'train', 'eval' and optionally "
+                f"'validation', not {sorted(unknown)}"
             )
         explicit = {key: [float(v) for v in values] for key, values in raw.items()}
         return [v for values in explicit.values() for v in values], explicit
@@ -692,10 +715,20 @@ def choose_start(
         return state.initial_time
     if split in (None, "train", "eval"):
         pool = state.split.get(split or "train") or state.snapshots
+    elif split == "validation":
+        pool = state.split.get("validation") or []
+        if not pool:
+            raise ConfigError(
+                "reset option split='validation': the case keeps no validation snapshots; "
+                "set the solver option validation_fraction (e.g. 0.25) or give snapshots "
+                "as {'train': [...], 'eval': [...], 'validation': [...]}"
+            )
     elif split == "all":
         pool = state.snapshots
     else:
-        raise ConfigError(f"reset option split={split!r}: use 'train' (default), 'eval' or 'all'")
+        raise ConfigError(
+            f"reset option split={split!r}: use 'train' (default), 'eval', 'validation' or 'all'"
+        )
     if start is not None:
         if isinstance(start, bool) or not isinstance(start, (int, np.integer)):
             raise ConfigError(f"reset option start={start!r}: must be an integer index")

@@ -9,8 +9,9 @@ Solver options (``physics_simulation_engine.solvers.<name>.options``):
 ``prerun_cache``     share pre-runs between envs and runs (default true: the user cache,
                      see :mod:`.prerun_cache`; false: never; or a directory)
 ``initial_time``     start episodes from this existing time directory instead
-``snapshots``        times (or ``{"train": [...], "eval": [...]}``) to draw episode starts
-                     from; ``eval_fraction`` (default 0.25) sets the fixed split
+``snapshots``        times (or ``{"train": [...], "eval": [...], "validation": [...]}``) to
+                     draw episode starts from; ``eval_fraction`` (default 0.25) sets the
+                     fixed split, ``validation_fraction`` (default 0: none) a third set
 ``end_time``         controlDict ``endTime`` to use (default: long enough for the coupling)
 ``geo``, ``msh``       the gmsh geometry or mesh to convert when the case ships no mesh
 ``max_courant``      end the episode as diverged once the log's Courant number max passes
@@ -71,6 +72,7 @@ OPTIONS = (
     "initial_time",
     "snapshots",
     "eval_fraction",
+    "validation_fraction",
     "end_time",
     "geo",
     "msh",

@@ -81,6 +81,7 @@ __all__ = [
     "describe_processes",
     "inject",
     "is_mpi_singleton_daemon",
+    "is_owner_watchdog",
     "pid_alive",
     "process_family",
     "env_processes",
@@ -291,18 +292,33 @@ def is_mpi_singleton_daemon(pid: int) -> bool:
     return bool(argv) and argv[0].endswith(b"orted") and b"--singleton-died-pipe" in argv
 
 
+def is_owner_watchdog(pid: int) -> bool:
+    """Whether ``pid`` is the watchdog of a process that launched solvers.
+
+    It outlives its owner by design (:mod:`gymprecice.owner_watchdog`): once the owner is
+    gone it stops what the owner left and exits, a moment later (longer on a busy machine).
+    """
+    try:
+        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return False
+    return b"gymprecice.owner_watchdog" in argv[:4]
+
+
 def survivors(pids: Iterable[int], keep: Iterable[int] = (), mpi_grace: float = 10.0) -> list[int]:
-    """The live ``pids`` except ``keep``, once MPI singleton daemons among them had time to exit.
+    """The live ``pids`` except ``keep``, once MPI singleton daemons and owner watchdogs
+    among them had time to exit.
 
     Any other live process is returned at once; while the live ones are all Open MPI
-    singleton daemons (:func:`is_mpi_singleton_daemon`) or processes already exiting (their
-    memory released: an empty command line, e.g. an ``orted`` in uninterruptible exit),
-    wait up to ``mpi_grace`` seconds for them to go, so that one still there after the
-    grace counts as leaked.
+    singleton daemons (:func:`is_mpi_singleton_daemon`), watchdogs of owners that are gone
+    (:func:`is_owner_watchdog`) or processes already exiting (their memory released: an
+    empty command line, e.g. an ``orted`` in uninterruptible exit), wait up to
+    ``mpi_grace`` seconds for them to go, so that one still there after the grace counts as
+    leaked.
     """
     allowed = set(keep)
     candidates = [p for p in set(pids) if p not in allowed]
-    daemons = {p for p in candidates if is_mpi_singleton_daemon(p)}
+    daemons = {p for p in candidates if is_mpi_singleton_daemon(p) or is_owner_watchdog(p)}
     deadline = time.monotonic() + mpi_grace
     while True:
         alive = sorted(p for p in candidates if pid_alive(p))

@@ -11,8 +11,8 @@ up what its env started. Everything else is decided here, the same for every bac
   (*timeout*) is killed with every process group it recorded in
   ``<run_dir>/.gymprecice/pids`` (on the machine where it ran), the failure is logged
   with the env index and the log tail, and the env is started again and reset. Its
-  partial episode ends as **truncated** with the failure in ``info["failure"]``; the
-  other envs' results are untouched;
+  partial episode ends as **truncated** with the failure in ``info["failure"]`` (and a
+  line of ``<log_dir>/failures.jsonl``); the other envs' results are untouched;
 * a failure budget (``max_failures_per_env`` within the last ``failure_window``
   episodes of an env) stops the run with :class:`FailureBudgetExceededError` instead of
   respawning a broken env forever; ``fatal_errors`` stop it at once;
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import json
 import logging
 import math
 import os
@@ -61,6 +62,9 @@ DEFAULT_STEP_TIMEOUT = 900.0
 DEFAULT_RESET_TIMEOUT = 1800.0
 DEFAULT_CALL_TIMEOUT = 120.0
 DEFAULT_CLOSE_TIMEOUT = 30.0
+#: every failure of a pool's envs, one JSON line each (``EnvFailure.to_info``), in its
+#: ``log_dir``: what a run's restarts were, after it ended (appended to across runs)
+FAILURES_FILE = "failures.jsonl"
 
 
 @dataclass
@@ -592,8 +596,8 @@ class EnvPool:
         log_file = None
         where = "host"
         if worker is not None:
-            where = worker.where
             returncode = worker.kill()
+            where = worker.where  # after the kill, which may learn that its node is lost
             tail = worker.tail()
             log_file = str(worker.log_path)
         killed: list[int] = []
@@ -638,6 +642,8 @@ class EnvPool:
         slot.history.append(True)
         slot.episode_active = False
         self.telemetry.record_failure(failure)
+        with contextlib.suppress(OSError), open(self.log_dir / FAILURES_FILE, "a") as record:
+            record.write(json.dumps(failure.to_info(), default=str) + "\n")
         recent = sum(slot.history)
         log.warning(
             "env %d failed (%d of at most %d in its last %d episodes); restarting it. %s",

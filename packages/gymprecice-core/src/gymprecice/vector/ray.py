@@ -17,9 +17,11 @@ worker is what makes cleanup reach the node where the processes ran:
 
 The pool's contract is untouched: deadlines are the driver's (an actor that does not
 answer in time is killed with ``ray.kill``), a dead actor or node is a *crash* (one
-failure per env on it), and a respawned env is a new actor that Ray places on any node
-with room. Logs come back to the driver: the tail of each failure in its report, and the
-whole log of each env into ``<log_dir>/env_<i>.log`` when the pool closes.
+failure per env on it; the report names a lost node as such), and a respawned env is a
+new actor that Ray places on any node with room. Where no node has room (a lost node's
+envs on a full cluster) the actor waits for one; the driver says so after
+``PLACEMENT_NOTICE_S``. Logs come back to the driver: the tail of each failure in its
+report, and the whole log of each env into ``<log_dir>/env_<i>.log`` when the pool closes.
 """
 
 from __future__ import annotations
@@ -30,14 +32,15 @@ import logging
 import os
 import signal
 import tempfile
+import time
 import uuid
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import cloudpickle
 import ray
-from ray.exceptions import GetTimeoutError, RayActorError, RayError
+from ray.exceptions import GetTimeoutError, RayActorError, RayError, TaskUnschedulableError
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
 from gymprecice.processes import kill_recorded_groups
@@ -51,6 +54,10 @@ log = logging.getLogger("gymprecice.vector")
 
 #: seconds the driver waits for a node-local cleanup task (a lost node never answers)
 NODE_TASK_TIMEOUT_S = 30.0
+#: seconds a new actor may wait for a node with room before the driver says it waits
+PLACEMENT_NOTICE_S = 60.0
+#: how often the driver looks whether such an actor found a node
+_PLACEMENT_POLL_S = 5.0
 #: where an actor works when neither the backend nor GYMPRECICE_NODE_DIR says
 _NODE_DIR_ENV = "GYMPRECICE_NODE_DIR"
 
@@ -145,15 +152,19 @@ _clean_node_task = ray.remote(num_cpus=0, max_retries=0)(_clean_node)
 class RayHost:
     """The driver's handle on one actor (one life of one env)."""
 
-    def __init__(self, actor: Any, index: int, log_path: Path) -> None:
+    def __init__(self, actor: Any, index: int, log_path: Path, asks: str = "") -> None:
         self.actor = actor
         self.index = index
         self.log_path = log_path
+        self.asks = asks  # what it asks of a node, for the notice that none has room
         self._where_ref = actor.where.remote()
         self._where: dict[str, Any] | None = None
         self.ref = actor.request.remote(None)
         self._tail = ""
         self.log_returned = False  # the whole log came back (at close): no tail to add
+        self.spawned = time.monotonic()
+        self.placement_known = False  # it runs on a node, or the driver said it waits
+        self.node_lost = False  # its node is gone (a cleanup task there was unschedulable)
 
     def _info(self) -> dict[str, Any]:
         if self._where is None:
@@ -176,7 +187,8 @@ class RayHost:
     @property
     def where(self) -> str:
         node = (self.node_id or "unknown")[:12]
-        return f"Ray actor on node {node} (worker pid {self.pid})"
+        lost = "lost node" if self.node_lost else "node"
+        return f"Ray actor on {lost} {node} (worker pid {self.pid})"
 
     def send(self, command: str, data: Any) -> None:
         self.ref = self.actor.request.remote(command, data)
@@ -200,7 +212,7 @@ class RayHost:
     ) -> tuple[list[int], str]:
         """Run :func:`_clean_node` on the actor's node; nothing if that node is gone."""
         node = self.node_id
-        if node is None:
+        if node is None or self.node_lost:
             return [], ""
         task = _clean_node_task.options(
             scheduling_strategy=NodeAffinitySchedulingStrategy(node, soft=False)
@@ -208,6 +220,8 @@ class RayHost:
         try:
             return ray.get(task.remote(pid, run_dir, grace, log_path), timeout=NODE_TASK_TIMEOUT_S)
         except (RayError, GetTimeoutError) as exc:
+            # unschedulable: Ray knows the node is gone (its solvers died with it)
+            self.node_lost = isinstance(exc, TaskUnschedulableError)
             log.info(
                 "env %d: no cleanup on node %s (%s)", self.index, node[:12], type(exc).__name__
             )
@@ -268,10 +282,16 @@ class RayBackend:
             **self.actor_options,
         }
         actor = self._actor_class.options(**options).remote(index, payload, self.node_dir, environ)
-        return RayHost(actor, index, log_path)
+        asks = f"{self._cpus[index]:g} CPU(s)" + "".join(
+            f", {v:g} {k}" for k, v in self.resources.items()
+        )
+        return RayHost(actor, index, log_path, asks)
 
     def wait(self, hosts: Mapping[int, RayHost], timeout: float | None) -> dict[int, Reply]:
-        """Wait up to ``timeout`` for the pending requests of ``hosts``; those answered."""
+        """Wait up to ``timeout`` for the pending requests of ``hosts``; those answered
+        (none, earlier, while an actor waits for a node: see :meth:`_note_unplaced`)."""
+        if self._note_unplaced(hosts.values()):
+            timeout = _PLACEMENT_POLL_S if timeout is None else min(timeout, _PLACEMENT_POLL_S)
         refs = {host.ref: index for index, host in hosts.items()}
         ready, rest = ray.wait(list(refs), num_returns=1, timeout=timeout)
         if ready and rest:
@@ -287,6 +307,33 @@ class RayBackend:
                 log.warning("env %d: Ray failed its request: %s", refs[ref], exc)
                 replies[refs[ref]] = CRASH
         return replies
+
+    def _note_unplaced(self, hosts: Iterable[RayHost]) -> bool:
+        """Say once of each actor that has waited ``PLACEMENT_NOTICE_S`` for a node with
+        room that it waits (Ray would wait for ever, silently); whether any still may."""
+        watching = False
+        for host in hosts:
+            if host.placement_known:
+                continue
+            host.placement_known = bool(ray.wait([host._where_ref], timeout=0)[0])
+            if host.placement_known:
+                continue
+            waited = time.monotonic() - host.spawned
+            if waited < PLACEMENT_NOTICE_S:
+                watching = True
+                continue
+            host.placement_known = True  # said once
+            free = ray.available_resources().get("CPU", 0.0)
+            log.warning(
+                "env %d: no node of the Ray cluster has room for it after %.0f s (it asks "
+                "for %s; %g CPU(s) free in all); it starts once a node has room: a node "
+                "joins, or other work ends. A lost node's envs wait so on a full cluster.",
+                host.index,
+                waited,
+                host.asks,
+                free,
+            )
+        return watching
 
     def cleanup(self, run_dir: str | None, host: RayHost | None, grace: float) -> list[int]:
         """Kill the env's recorded process groups, on the node where it ran."""

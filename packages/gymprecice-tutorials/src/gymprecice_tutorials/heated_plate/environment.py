@@ -53,7 +53,7 @@ import numpy as np
 from gymprecice.core import Adapter
 from gymprecice.fields import Overlay
 from gymprecice_tutorials.case_files import write_case_files
-from gymprecice_tutorials.episodes import read_split
+from gymprecice_tutorials.episodes import fixed_start, read_split
 from gymprecice_tutorials.heated_plate.packaged_case import SOLIDS, case_files
 
 __all__ = [
@@ -96,6 +96,15 @@ EVAL_STARTS = (
     Start(305.25, 0.5, 0.045),
     Start(306.75, 1.1, 0.255),
     Start(307.25, 0.7, 0.165),
+)
+
+#: validation starts (``reset(options={"split": "validation"})``), which choose the model
+#: a training run keeps: between the training grid's points like the held-out starts,
+#: none of them
+VALIDATION_STARTS = (
+    Start(305.75, 0.9, 0.135),
+    Start(306.25, 0.3, 0.225),
+    Start(307.75, 0.5, 0.075),
 )
 
 
@@ -194,6 +203,15 @@ class HeatedPlateEnv(Adapter):
             for s in EVAL_STARTS
         )
 
+    @property
+    def validation_starts(self) -> tuple[str, ...]:
+        """The validation starts, in the order ``reset(options={"split": "validation",
+        "start": k})`` takes them."""
+        return tuple(
+            f"setpoint {s.setpoint:g} K, inflow -> {s.velocity:g} m/s at {s.step_time:g} s"
+            for s in VALIDATION_STARTS
+        )
+
     # -- the controller's physics ------------------------------------------------------------
     def inflow_velocity(self, time: float) -> float:
         """The inflow velocity (m/s) at simulated ``time``: the episode's step after settling."""
@@ -280,10 +298,8 @@ class HeatedPlateEnv(Adapter):
 
     def _initial_action(self) -> np.ndarray:
         """Choose this episode's start; every run begins at the tutorial's 310 K heater."""
-        if self._split == "eval":
-            self.start = EVAL_STARTS[(self._split_seed or 0) % len(EVAL_STARTS)]
-        else:
-            self.start = draw_start(self.np_random, self.episode_time)
+        fixed = fixed_start(self._split, self._split_seed, EVAL_STARTS, VALIDATION_STARTS)
+        self.start = fixed or draw_start(self.np_random, self.episode_time)
         self._heater = REFERENCE_HEATER
         return np.array([REFERENCE_HEATER], dtype=np.float32)
 
@@ -294,10 +310,12 @@ class HeatedPlateEnv(Adapter):
         """Start the coupled run, drive it through ``settle_time``, return the state.
 
         ``options={"split": "eval"}`` takes :data:`EVAL_STARTS` ``[seed % 3]`` (``seed`` 0
-        when none is given), or ``[k]`` with ``"start": k``; any other split draws a training
-        start from the seed.
+        when none is given), or ``[k]`` with ``"start": k``; ``"validation"`` likewise
+        :data:`VALIDATION_STARTS`; ``"train"`` draws a training start from the seed.
         """
-        self._split, self._split_seed = read_split(options, seed, len(EVAL_STARTS), "starts")
+        self._split, self._split_seed = read_split(
+            options, seed, len(EVAL_STARTS), "starts", len(VALIDATION_STARTS)
+        )
         obs, info = super().reset(seed=seed, options=options)  # draws self.start
         while self.time < self.settle_time - 1e-9:
             obs, _, terminated, truncated, info = super().step(

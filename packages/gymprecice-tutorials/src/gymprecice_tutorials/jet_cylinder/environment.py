@@ -198,19 +198,33 @@ class CylinderFlowEnv(Adapter):
         rule). The test double's flow has no snapshots: it names the recipe's held-out
         snapshots, but starts every episode from the same state.
         """
+        return self._snapshot_starts("eval")
+
+    @property
+    def validation_starts(self) -> tuple[str, ...]:
+        """The starts that choose the model a training run keeps, in the order
+        ``reset(options={"split": "validation", "start": k})`` takes them: the snapshot
+        library's validation split (empty: the case keeps none). On the test double, as
+        :attr:`held_out_starts`: names only."""
+        return self._snapshot_starts("validation")
+
+    def _snapshot_starts(self, split: str) -> tuple[str, ...]:
+        """Labels of the snapshot library's ``split``, in time order."""
         from gymprecice_openfoam.case import split_snapshots
 
         solver = self.config.solvers[self.fluid]
         if solver.kind == "openfoam":
             raw = solver.options.get("snapshots") or []
             if isinstance(raw, Mapping):
-                times = [float(t) for t in raw.get("eval", [])]
+                times = [float(t) for t in raw.get(split, [])]
             else:
                 names = [f"{float(t):g}" for t in raw]
-                times = [float(t) for t in split_snapshots(names, dict(solver.options))["eval"]]
+                parts = split_snapshots(names, dict(solver.options)) if names else {}
+                times = [float(t) for t in parts.get(split, [])]
         else:
             names = [f"{t:g}" for t in self.case_spec.snapshots]
-            times = [float(t) for t in split_snapshots(names, {})["eval"]] if names else []
+            parts = split_snapshots(names, {"validation_fraction": 0.25}) if names else {}
+            times = [float(t) for t in parts.get(split, [])]
         return tuple(f"t = {t:g} s" for t in sorted(times))
 
     # -- reading the solver's outputs ------------------------------------------------------

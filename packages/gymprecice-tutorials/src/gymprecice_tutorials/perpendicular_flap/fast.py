@@ -66,7 +66,7 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice_tutorials.case_files import write_case_files
-from gymprecice_tutorials.episodes import episode_timing, read_split
+from gymprecice_tutorials.episodes import episode_timing, fixed_start, read_split
 from gymprecice_tutorials.perpendicular_flap import double as flap_double
 from gymprecice_tutorials.perpendicular_flap.environment import (
     INLET_HEIGHT,
@@ -86,6 +86,7 @@ from gymprecice_tutorials.perpendicular_flap.training_case import (
 __all__ = [
     "EVAL_GUSTS",
     "FAST_EDITS",
+    "VALIDATION_GUSTS",
     "PRECICE_OBSERVATION_EDITS",
     "PerpendicularFlapFastEnv",
     "Gust",
@@ -121,6 +122,14 @@ EVAL_GUSTS: tuple[Gust, ...] = (
     Gust(1.0, 3.0, 0.5),
     Gust(3.0, 1.0, 0.3),
     Gust(2.0, 1.5, 0.7),
+)
+
+#: The validation starts, which choose the model a training run keeps: whole-step heights
+#: like the held-out gusts (so no training draw meets them), none of the held-out ones.
+VALIDATION_GUSTS: tuple[Gust, ...] = (
+    Gust(1.5, 2.5, 0.4),
+    Gust(2.5, 1.5, 0.6),
+    Gust(3.0, 2.0, 0.5),
 )
 
 
@@ -221,10 +230,12 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         """Start the coupled run, drive it through this episode's gust, return the state.
 
         ``options={"split": "eval"}`` takes :data:`EVAL_GUSTS` ``[seed % 3]`` (``seed``
-        0 when none is given), or ``[k]`` with ``"start": k``; any other split draws a
-        training gust from the seed.
+        0 when none is given), or ``[k]`` with ``"start": k``; ``"validation"`` likewise
+        :data:`VALIDATION_GUSTS`; ``"train"`` draws a training gust from the seed.
         """
-        self._split, self._split_seed = read_split(options, seed, len(EVAL_GUSTS), "gusts")
+        self._split, self._split_seed = read_split(
+            options, seed, len(EVAL_GUSTS), "gusts", len(VALIDATION_GUSTS)
+        )
         obs, info = super().reset(seed=seed, options=options)  # draws self.start
         assert self.start is not None
         while self.time < self.settle_time - 1e-9:
@@ -250,6 +261,14 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         """The held-out gusts, in the order ``reset(options={"split": "eval", "start": k})``
         takes them."""
         return tuple(f"jet {g.first:g} -> {g.second:g} m at {g.switch:g} s" for g in EVAL_GUSTS)
+
+    @property
+    def validation_starts(self) -> tuple[str, ...]:
+        """The validation gusts, in the order ``reset(options={"split": "validation",
+        "start": k})`` takes them."""
+        return tuple(
+            f"jet {g.first:g} -> {g.second:g} m at {g.switch:g} s" for g in VALIDATION_GUSTS
+        )
 
     def _get_action(self, action: Any, write_var_list: list) -> dict:
         if not (self.uncontrolled and self.time >= self.settle_time - 1e-9):
@@ -296,10 +315,8 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
         Core calls it during ``reset()`` once the seed is applied and the solvers run.
         """
         low, high = float(self.action_space.low[0]), float(self.action_space.high[0])
-        if self._split == "eval":
-            self.start = EVAL_GUSTS[(self._split_seed or 0) % len(EVAL_GUSTS)]
-        else:
-            self.start = gust(self.np_random, self.settle_time, low, high)
+        fixed = fixed_start(self._split, self._split_seed, EVAL_GUSTS, VALIDATION_GUSTS)
+        self.start = fixed or gust(self.np_random, self.settle_time, low, high)
         return np.array([self.start.first], dtype=np.float32)
 
 

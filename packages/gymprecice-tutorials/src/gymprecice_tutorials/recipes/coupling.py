@@ -115,7 +115,11 @@ def gymprecice_config(spec: CaseSpec) -> dict[str, object]:
                     "participant": "Fluid",
                     "options": {
                         "prerun_end_time": spec.prerun_end_time,
-                        **({"snapshots": list(spec.snapshots)} if spec.snapshots else {}),
+                        **(
+                            {"snapshots": list(spec.snapshots), "validation_fraction": 0.25}
+                            if spec.snapshots
+                            else {}
+                        ),
                         **({"max_courant": spec.max_courant} if spec.max_courant else {}),
                     },
                 }

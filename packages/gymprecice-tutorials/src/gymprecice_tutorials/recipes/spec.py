@@ -130,9 +130,11 @@ class CaseSpec:
     #: optional episode starts (simulated times before ``prerun_end_time``) that the
     #: pre-run also writes: a library of developed-flow snapshots at different shedding
     #: phases. The OpenFOAM plugin splits them once into training starts and held-out
-    #: evaluation starts (every fourth, ``eval_fraction`` 0.25); training resets draw from
-    #: the first, ``gymprecice evaluate`` / ``baseline`` from the second. Empty: every
-    #: episode starts from ``prerun_end_time``.
+    #: evaluation starts (every fourth, ``eval_fraction`` 0.25), with a validation start
+    #: halfway between two held-out ones (``validation_fraction`` 0.25) that chooses the
+    #: model a training run keeps; training resets draw from the rest,
+    #: ``gymprecice evaluate`` / ``baseline`` from the held-out ones. Empty: every episode
+    #: starts from ``prerun_end_time``.
     snapshots: tuple[float, ...] = ()
     #: the OpenFOAM plugin's divergence guard: an episode whose Courant number passes this
     #: ends as diverged (terminated, with the env's penalty) before the flow turns to

@@ -46,12 +46,20 @@ import numpy as np
 
 from gymprecice.multiagent import JointEnv
 from gymprecice_tutorials.case_files import write_case_files
-from gymprecice_tutorials.episodes import episode_timing, read_split
+from gymprecice_tutorials.episodes import episode_timing, fixed_start, read_split
 from gymprecice_tutorials.two_flaps import double as flaps_double
 from gymprecice_tutorials.two_flaps.environment import FLAPS, TwoFlapsEnv
 from gymprecice_tutorials.two_flaps.training_case import ACTION_TIME, fast_case_files
 
-__all__ = ["EVAL_GUSTS", "GUST_STEP", "Gust", "TwoFlapsFastEnv", "TwoFlapsJointEnv", "gust"]
+__all__ = [
+    "EVAL_GUSTS",
+    "GUST_STEP",
+    "VALIDATION_GUSTS",
+    "Gust",
+    "TwoFlapsFastEnv",
+    "TwoFlapsJointEnv",
+    "gust",
+]
 
 #: grid of gust settings (fractions of the slot's full velocity): training draws
 #: ``-1 + GUST_STEP * (k + 0.5)``, evaluation uses multiples of ``GUST_STEP``
@@ -87,6 +95,14 @@ EVAL_GUSTS: tuple[Gust, ...] = (
     Gust((1.0, -1.0), (-1.0, 1.0), 0.5),
     Gust((-1.0, 1.0), (1.0, -1.0), 0.3),
     Gust((0.0, 0.0), (0.5, 0.5), 0.7),
+)
+
+#: The validation starts, which choose the model a training run keeps: whole-step
+#: settings like the held-out gusts (so no training draw meets them), none of them.
+VALIDATION_GUSTS: tuple[Gust, ...] = (
+    Gust((0.5, -0.5), (-0.5, 0.5), 0.4),
+    Gust((-0.5, 0.0), (1.0, 0.5), 0.6),
+    Gust((1.0, 1.0), (0.0, -1.0), 0.5),
 )
 
 
@@ -158,10 +174,12 @@ class TwoFlapsFastEnv(TwoFlapsEnv):
         """Start the coupled run, drive it through this episode's gust, return the state.
 
         ``options={"split": "eval"}`` takes :data:`EVAL_GUSTS` ``[seed % 3]`` (``seed``
-        0 when none is given), or ``[k]`` with ``"start": k``; any other split draws a
-        training gust from the seed.
+        0 when none is given), or ``[k]`` with ``"start": k``; ``"validation"`` likewise
+        :data:`VALIDATION_GUSTS`; ``"train"`` draws a training gust from the seed.
         """
-        self._split, self._split_seed = read_split(options, seed, len(EVAL_GUSTS), "gusts")
+        self._split, self._split_seed = read_split(
+            options, seed, len(EVAL_GUSTS), "gusts", len(VALIDATION_GUSTS)
+        )
         obs, infos = super().reset(seed=seed, options=options)  # draws self.start
         assert self.start is not None
         while self.time < self.settle_time - 1e-9:
@@ -202,6 +220,15 @@ class TwoFlapsFastEnv(TwoFlapsEnv):
             f"slots {_pair(g.first)} -> {_pair(g.second)} at {g.switch:g} s" for g in EVAL_GUSTS
         )
 
+    @property
+    def validation_starts(self) -> tuple[str, ...]:
+        """The validation gusts, in the order ``reset(options={"split": "validation",
+        "start": k})`` takes them."""
+        return tuple(
+            f"slots {_pair(g.first)} -> {_pair(g.second)} at {g.switch:g} s"
+            for g in VALIDATION_GUSTS
+        )
+
     def _slot_mean_velocity(self, agent: str, action: np.ndarray) -> float:
         if self.uncontrolled and self.time >= self.settle_time - 1e-9:
             return 0.0
@@ -212,10 +239,8 @@ class TwoFlapsFastEnv(TwoFlapsEnv):
 
         Core calls it during ``reset()`` once the seed is applied and the solvers run.
         """
-        if self._split == "eval":
-            self.start = EVAL_GUSTS[(self._split_seed or 0) % len(EVAL_GUSTS)]
-        else:
-            self.start = gust(self.np_random, self.settle_time)
+        fixed = fixed_start(self._split, self._split_seed, EVAL_GUSTS, VALIDATION_GUSTS)
+        self.start = fixed or gust(self.np_random, self.settle_time)
         return {
             agent: np.array([value], dtype=np.float32)
             for agent, value in self.start.settings(0.0).items()
@@ -260,3 +285,7 @@ class TwoFlapsJointEnv(JointEnv):
     @property
     def held_out_starts(self) -> tuple[str, ...]:
         return self.env.held_out_starts
+
+    @property
+    def validation_starts(self) -> tuple[str, ...]:
+        return self.env.validation_starts
