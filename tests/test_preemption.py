@@ -158,8 +158,8 @@ def test_sac_saves_a_full_replay_buffer_within_a_grace_period_after_sigterm(tmp_
     """A SAC run resumed with its replay buffer full (100,000 random transitions) gets
     SIGTERM: it exits 143 with its new checkpoint and a whole, full replay buffer, well
     inside SLURM's default grace of 30 s (SIGTERM to exit: 1.3 s measured on 2 cores,
-    3.9 s on 2 busy cores). Cost: 50 s measured on 2 busy cores (two short SAC runs on
-    the double, 4 x 122 MB written)."""
+    3.9 s on 2 busy cores). Cost: 48 to 82 s measured on 2 busy cores (two short SAC
+    runs on the double, 4 x 122 MB written)."""
     status, out = _run(tmp_path, [*SAC, "--timesteps", "4"], "first.log")
     assert status == 0, out
     checkpoints = tmp_path / "sac" / "checkpoints"
@@ -193,7 +193,8 @@ def test_a_second_sigterm_during_the_save_does_not_cut_it_short(tmp_path):
     """SIGTERM, and again while the replay buffer is being written (a scheduler that
     signals at the time limit a save begun at its warning, an impatient user): the save
     finishes, the checkpoint of the step the run stopped at is whole and recorded.
-    Cost: about 15 s (one short SAC run on the double, 122 MB written)."""
+    Cost: 26 to 29 s measured on 2 busy cores (one short SAC run on the double, 122 MB
+    written)."""
     proc = _start(tmp_path, [*SAC, "--timesteps", "100000"], "train.log")
     log = tmp_path / "train.log"
     checkpoints = tmp_path / "sac" / "checkpoints"
@@ -226,7 +227,8 @@ def test_a_second_sigterm_during_the_save_does_not_cut_it_short(tmp_path):
 def test_sigterm_then_sigkill_2_s_later_and_the_same_command_resumes(tmp_path):
     """SIGTERM a moment after the first checkpoint, SIGKILL 2 s later whatever the run is
     doing (saving or gone): no process of the run is left, and the same command resumes
-    from a checkpoint and finishes. Cost: about 20 s (two short SAC runs on the double)."""
+    from a checkpoint and finishes. Cost: 70 to 84 s measured on 2 busy cores (two short
+    SAC runs on the double)."""
     argv = [*SAC, "--timesteps", "48", "--checkpoint-every", "8"]
     proc = _start(tmp_path, argv, "first.log")
     checkpoints = tmp_path / "sac" / "checkpoints"
@@ -306,7 +308,8 @@ def test_a_checkpoint_saved_over_and_killed_mid_write_stays_whole(tmp_path):
     """A save of a checkpoint that exists already (the final save at the step of the last
     periodic one) killed in the middle of each of its files in turn: every file keeps its
     earlier content, and the temporary files are removed by the next run.
-    Cost: about 4 s (one Python process that imports Stable-Baselines3)."""
+    Cost: 6 to 13 s measured on 2 busy cores (one Python process that imports
+    Stable-Baselines3)."""
     from gymprecice_lab.callbacks import remove_partial_saves
 
     names = ("sac_8_steps.zip", "sac_replay_buffer_8_steps.pkl", "sac_vecnormalize_8_steps.pkl")
@@ -372,8 +375,8 @@ def test_sigkill_mid_save_leaves_the_previous_checkpoint_whole_and_the_run_resum
 ):
     """SIGKILL while the second checkpoint's replay buffer (122 MB) is being written: the
     first checkpoint is the newest whole one, taken without a word about a torn file, and
-    the same command resumes from it and finishes. Cost: about 20 s (two short SAC runs
-    on the double)."""
+    the same command resumes from it and finishes. Cost: 52 to 74 s measured on 2 busy
+    cores (two short SAC runs on the double)."""
     from gymprecice_lab.envs import newest_checkpoint
 
     argv = [*SAC, "--timesteps", "40", "--checkpoint-every", "8", "--keep-checkpoints", "3"]
@@ -493,8 +496,9 @@ def test_a_benchmark_killed_at_each_stage_resumes_at_the_first_unfinished_piece(
     5 s (the evaluations' and the sweep's worker processes die with the command; left on,
     they would write into the directories the rerun works in), and each rerun keeps what
     was finished: seed 0, then seed 1 resumed from its checkpoint, the finished
-    evaluations, the finished controllers. Cost: about 90 s on 2 cores (four runs of a
-    tiny benchmark on the double, two seeds, two held-out starts, four controllers)."""
+    evaluations, the finished controllers. Cost: 103 to 173 s measured on 2 busy cores
+    (four runs of a tiny benchmark on the double, two seeds, two held-out starts, four
+    controllers)."""
     bench = tmp_path / "bench"
     seed_1 = bench / "train" / "ppo" / "seed_1" / "checkpoints" / "ppo_8_steps.zip"
     _kill_when(tmp_path, seed_1.is_file, "1-training.log")

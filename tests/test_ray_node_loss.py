@@ -145,8 +145,8 @@ def test_a_node_lost_while_a_benchmark_seed_trains_is_reported_in_its_results(
     results (results.json and the note under results.md's tables) say which seed restarted
     its env, once.
 
-    Cost: about 90 s (two trainings of 32 steps, the restart as above, two evaluations as
-    Ray tasks of a process each).
+    Cost: about 100 s (two trainings of 32 steps, the restart as above, two evaluations
+    as Ray tasks of a process each).
     """
     out = tmp_path / "bench"
     argv = [

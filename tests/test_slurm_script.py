@@ -224,7 +224,8 @@ def _preempted_then_requeued(tmp_path: Path, batch_only: bool) -> None:
 def test_a_job_signalled_before_its_time_limit_saves_requeues_and_resumes(tmp_path):
     """``--signal=B:TERM@60``: SIGTERM to the batch script alone, which passes it on,
     waits for the save and requeues the job; the requeued job resumes and finishes.
-    Cost: about 30 s (two jobs of a small training on the double)."""
+    Cost: 50 to 67 s measured on 2 busy cores (two jobs of a small training on the
+    double)."""
     assert _directives(batch_script())["signal"].startswith("B:")
     _preempted_then_requeued(tmp_path, batch_only=True)
 
@@ -235,6 +236,6 @@ def test_a_preempted_job_saves_and_resumes(tmp_path):
     """A preemption: SIGTERM to every process of the job at once, the training's from the
     scheduler and from the script; the job saves within the grace period, the script asks
     for a requeue (SLURM requeues a preempted ``--requeue`` job anyway) and the requeued
-    job resumes and finishes. Cost: about 30 s (two jobs of a small training on the
-    double)."""
+    job resumes and finishes. Cost: 41 to 71 s measured on 2 busy cores (two jobs of a
+    small training on the double)."""
     _preempted_then_requeued(tmp_path, batch_only=False)

@@ -40,6 +40,7 @@ __all__ = [
     "EpisodeMetricsCallback",
     "Interrupted",
     "RotatingCheckpoints",
+    "StopOnSignal",
     "hold_stop_signals",
     "prune_checkpoints",
     "read_best",
@@ -72,7 +73,8 @@ def stop_signals_interrupt() -> Iterator[None]:
     cut short the unwinding that the first one started.
     """
     previous = {}
-    received: list[int] = []
+    received = _received
+    received.clear()
 
     def handler(signum: int, frame: Any) -> None:
         if received:
@@ -87,6 +89,26 @@ def stop_signals_interrupt() -> Iterator[None]:
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
+        received.clear()
+
+
+#: the stop signal received inside the current :func:`stop_signals_interrupt` block
+_received: list[int] = []
+
+
+class StopOnSignal(BaseCallback):
+    """Raise a received stop signal again at the next step.
+
+    The handler's exception is lost where it lands in code that swallows exceptions: a
+    finaliser, or logging's lock release ("Exception ignored in ..."). Training would then
+    go on as if nothing was received, and only the first signal raises. Seen as a
+    training that outlived its killed ``gymprecice tune``.
+    """
+
+    def _on_step(self) -> bool:
+        if _received:
+            raise Interrupted(_received[0])
+        return True
 
 
 @contextlib.contextmanager

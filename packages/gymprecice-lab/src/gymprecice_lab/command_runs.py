@@ -104,8 +104,8 @@ def die_with_parent(parent: int) -> None:
     works in. Linux's ``PR_SET_PDEATHSIG`` ends them (their own solvers then die with
     them, :mod:`gymprecice.owner_watchdog`); a parent that died before the request took
     effect is seen by the worker's parent no longer being ``parent``. The request holds
-    while the *thread* that started the worker lives: the main thread, or a pool's
-    worker handler, which lives until the pool has every result.
+    while the *thread* that started the worker lives: for a worker started from a thread
+    that may end first, :func:`_die_with_pool_parent`.
     """
     if sys.platform.startswith("linux"):
         with contextlib.suppress(OSError, AttributeError):
@@ -113,6 +113,31 @@ def die_with_parent(parent: int) -> None:
             ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
     if os.getppid() != parent:
         os._exit(1)
+
+
+def _die_with_pool_parent(parent: int) -> None:
+    """:func:`die_with_parent` for a pool's worker: a thread of the worker watches its
+    parent *process* (within a second) instead of ``PR_SET_PDEATHSIG``.
+
+    A pool with ``maxtasksperchild=1`` starts a new worker from its worker-handler thread
+    whenever one finishes its job while others still run. That thread ends once the pool
+    has every result, before the idle new worker has read the pool's stop sentinel:
+    ``PR_SET_PDEATHSIG`` would SIGKILL that worker while it holds the lock of the pool's
+    task queue, and the pool's clean-up would wait for that lock for ever (the command
+    hung after its last job, e.g. a benchmark's seeds that end at different times).
+    """
+    import threading
+    import time
+
+    if os.getppid() != parent:
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
 
 
 def _worker_status(argv: list[str]) -> int:
@@ -154,7 +179,7 @@ def run_in_pool(
     with stop_signals_interrupt():
         pool = context.Pool(
             min(workers, len(jobs)),
-            initializer=die_with_parent,
+            initializer=_die_with_pool_parent,
             initargs=(os.getpid(),),
             maxtasksperchild=1,
         )

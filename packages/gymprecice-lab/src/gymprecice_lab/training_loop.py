@@ -232,7 +232,7 @@ def _checkpointing(
 ) -> list[Any]:
     """The callbacks every run has: rotating checkpoints (every 10 rollouts unless
     ``every`` steps) and the episodes' metrics in the log."""
-    from gymprecice_lab.callbacks import EpisodeMetricsCallback, RotatingCheckpoints
+    from gymprecice_lab.callbacks import EpisodeMetricsCallback, RotatingCheckpoints, StopOnSignal
 
     algo = params["algo"]
     every = every or 10 * rollout_chunk(params, n_envs)
@@ -246,6 +246,7 @@ def _checkpointing(
             keep=keep,
         ),
         EpisodeMetricsCallback(),
+        StopOnSignal(),
     ]
 
 

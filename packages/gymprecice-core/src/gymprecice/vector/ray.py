@@ -309,8 +309,9 @@ class RayBackend:
         return replies
 
     def _note_unplaced(self, hosts: Iterable[RayHost]) -> bool:
-        """Say once of each actor that has waited ``PLACEMENT_NOTICE_S`` for a node with
-        room that it waits (Ray would wait for ever, silently); whether any still may."""
+        """Say once of each actor not started ``PLACEMENT_NOTICE_S`` after it was asked
+        for that it waits (Ray waits for a node with room for ever, silently); whether any
+        such notice is still to come."""
         watching = False
         for host in hosts:
             if host.placement_known:
@@ -325,9 +326,9 @@ class RayBackend:
             host.placement_known = True  # said once
             free = ray.available_resources().get("CPU", 0.0)
             log.warning(
-                "env %d: no node of the Ray cluster has room for it after %.0f s (it asks "
-                "for %s; %g CPU(s) free in all); it starts once a node has room: a node "
-                "joins, or other work ends. A lost node's envs wait so on a full cluster.",
+                "env %d: its Ray actor has not started after %.0f s (it asks for %s; the "
+                "cluster has %g CPU(s) free): it starts once a node has room for it, when "
+                "one joins or other work ends. A lost node's envs wait so on a full cluster.",
                 host.index,
                 waited,
                 host.asks,
