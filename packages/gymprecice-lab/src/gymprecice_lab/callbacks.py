@@ -180,7 +180,9 @@ def record_checkpoint(directory: Path, path: Path, model: Any) -> None:
     best = read_best(directory)
     if best.get("mean_return") is None or score > float(best["mean_return"]):
         record = {"name": path.name, "timesteps": int(model.num_timesteps), "mean_return": score}
-        (directory / BEST_NAME).write_text(json.dumps(record, indent=2) + "\n")
+        tmp = _partial(directory / BEST_NAME)  # whole or not at all, as the checkpoints
+        tmp.write_text(json.dumps(record, indent=2) + "\n")
+        os.replace(tmp, directory / BEST_NAME)
 
 
 def _partial(path: Path) -> Path:
