@@ -26,9 +26,10 @@ The mechanisms each kill relies on are checked where they are cheap to switch of
 layers that stop the solvers in tests/test_no_orphans.py, the saves that stay whole
 and the repeated signal in tests/test_preemption.py.
 
-Cost: 7.6 min for the six tests measured on 2 busy cores (a load of 4 to 5: another
-training's pimpleFoam beside them); each test states its own. Much of it is start-up: a
-resume of the jet cylinder measured 18 s from its start to its env worker's, of 38 s.
+Cost: 3.6 to 4.0 min for the six tests measured on 2 cores with little else running,
+7.6 min on 2 busy cores (a load of 4 to 5: another training's pimpleFoam beside them);
+each test states its own. Much of it is start-up: a resume of the jet cylinder measured
+18 s from its start to its env worker's, of 38 s.
 
 The kill before the first action of the jet cylinder finds a real gap, and the test says
 so as an expected failure until it is closed: the env's worker process is started by
@@ -282,8 +283,8 @@ def test_jet_cylinder_killed_mid_prerun_leaves_nothing_and_resumes(tmp_path, jet
     the env's worker outlives the training until its pre-run ends (module docstring); any
     other failure fails.
 
-    Cost: 141 s measured on 2 busy cores: blockMesh and a second of pre-run, then the
-    resume's whole pre-run (about 45 s) and 12 coupled actions.
+    Cost: 70 s measured on 2 cores (141 s busy): blockMesh and a second of pre-run,
+    then the resume's whole pre-run (about 45 s) and 12 coupled actions.
     """
     missing = _missing_openfoam()
     if missing:
@@ -319,8 +320,9 @@ def test_jet_cylinder_killed_mid_coupling_leaves_nothing_and_resumes(tmp_path, j
     its first checkpoint: the coupling worker, pimpleFoam and the rest gone within 10 s;
     the same command resumes from the checkpoint and finishes.
 
-    Cost: 74 s measured on 2 busy cores with the module's pre-run cache (two short runs
-    of 4 and 8 coupled actions; without the cache, a pre-run more: about 45 s).
+    Cost: 27 to 29 s measured on 2 cores (74 s busy) with the module's pre-run cache:
+    two short runs of 4 and 8 coupled actions (without the cache, a pre-run more: about
+    45 s).
     """
     missing = _missing_openfoam()
     if missing:
@@ -338,8 +340,8 @@ def test_jet_cylinder_killed_mid_save_leaves_nothing_and_resumes(tmp_path, jet_c
     where the checkpoint was being saved; the same command resumes from the first
     checkpoint, with no word of a torn file, and finishes.
 
-    Cost: 70 s measured on 2 busy cores with the module's pre-run cache (two short runs
-    of 8 and 8 coupled actions).
+    Cost: 31 to 34 s measured on 2 cores (70 s busy) with the module's pre-run cache:
+    two short runs of 8 and 8 coupled actions.
     """
     missing = _missing_openfoam()
     if missing:
@@ -366,8 +368,8 @@ def test_two_flaps_killed_mid_reset_leaves_nothing_and_resumes(tmp_path):
     the first action): pimpleFoam, both deal.II flaps, the coupling worker and the rest
     gone within 10 s; the same command starts over and finishes.
 
-    Cost: 53 s measured on 2 busy cores (a first reset cut short, then 12 coupled
-    actions of the four participants and two resets).
+    Cost: 32 to 38 s measured on 2 cores (53 s busy): a first reset cut short, then 12
+    coupled actions of the four participants and two resets.
     """
     missing = _missing_dealii()
     if missing:
@@ -398,8 +400,8 @@ def test_two_flaps_killed_mid_coupling_leaves_nothing_and_resumes(tmp_path):
     first checkpoint: the four participants' processes and the rest gone within 10 s; the
     same command resumes from the checkpoint and finishes.
 
-    Cost: 59 s measured on 2 busy cores (runs of 4 and 8 coupled actions of the four
-    participants).
+    Cost: 28 to 29 s measured on 2 cores (59 s busy): runs of 4 and 8 coupled actions
+    of the four participants.
     """
     missing = _missing_dealii()
     if missing:
@@ -417,8 +419,8 @@ def test_two_flaps_killed_mid_save_leaves_nothing_and_resumes(tmp_path):
     replay buffer (164 MB) is written: nothing left within 10 s; the same command resumes
     from the first checkpoint and finishes.
 
-    Cost: 59 s measured on 2 busy cores (runs of 8 and 8 coupled actions of the four
-    participants).
+    Cost: 26 to 38 s measured on 2 cores (59 s busy): runs of 8 and 8 coupled actions
+    of the four participants.
     """
     missing = _missing_dealii()
     if missing:

@@ -1,4 +1,4 @@
-"""A cluster's preemption is an ordinary event for ``gymprecice train``, ``benchmark`` and ``sweep``.
+"""Preemption is an ordinary event for ``gymprecice train``, ``benchmark`` and ``sweep``.
 
 SLURM ends a job with SIGTERM and, a grace period later (30 s unless the cluster sets
 another), SIGKILL. ``gymprecice train`` turns the SIGTERM into a saved model and
@@ -193,7 +193,7 @@ def test_a_second_sigterm_during_the_save_does_not_cut_it_short(tmp_path):
     """SIGTERM, and again while the replay buffer is being written (a scheduler that
     signals at the time limit a save begun at its warning, an impatient user): the save
     finishes, the checkpoint of the step the run stopped at is whole and recorded.
-    Cost: 26 to 29 s measured on 2 busy cores (one short SAC run on the double, 122 MB
+    Cost: 18 to 29 s measured on 2 busy cores (one short SAC run on the double, 122 MB
     written)."""
     proc = _start(tmp_path, [*SAC, "--timesteps", "100000"], "train.log")
     log = tmp_path / "train.log"
@@ -227,7 +227,7 @@ def test_a_second_sigterm_during_the_save_does_not_cut_it_short(tmp_path):
 def test_sigterm_then_sigkill_2_s_later_and_the_same_command_resumes(tmp_path):
     """SIGTERM a moment after the first checkpoint, SIGKILL 2 s later whatever the run is
     doing (saving or gone): no process of the run is left, and the same command resumes
-    from a checkpoint and finishes. Cost: 70 to 84 s measured on 2 busy cores (two short
+    from a checkpoint and finishes. Cost: 47 to 84 s measured on 2 busy cores (two short
     SAC runs on the double)."""
     argv = [*SAC, "--timesteps", "48", "--checkpoint-every", "8"]
     proc = _start(tmp_path, argv, "first.log")
@@ -308,7 +308,7 @@ def test_a_checkpoint_saved_over_and_killed_mid_write_stays_whole(tmp_path):
     """A save of a checkpoint that exists already (the final save at the step of the last
     periodic one) killed in the middle of each of its files in turn: every file keeps its
     earlier content, and the temporary files are removed by the next run.
-    Cost: 6 to 13 s measured on 2 busy cores (one Python process that imports
+    Cost: 4 to 13 s measured on 2 busy cores (one Python process that imports
     Stable-Baselines3)."""
     from gymprecice_lab.callbacks import remove_partial_saves
 
@@ -375,7 +375,7 @@ def test_sigkill_mid_save_leaves_the_previous_checkpoint_whole_and_the_run_resum
 ):
     """SIGKILL while the second checkpoint's replay buffer (122 MB) is being written: the
     first checkpoint is the newest whole one, taken without a word about a torn file, and
-    the same command resumes from it and finishes. Cost: 52 to 74 s measured on 2 busy
+    the same command resumes from it and finishes. Cost: 37 to 74 s measured on 2 busy
     cores (two short SAC runs on the double)."""
     from gymprecice_lab.envs import newest_checkpoint
 

@@ -224,7 +224,7 @@ def _preempted_then_requeued(tmp_path: Path, batch_only: bool) -> None:
 def test_a_job_signalled_before_its_time_limit_saves_requeues_and_resumes(tmp_path):
     """``--signal=B:TERM@60``: SIGTERM to the batch script alone, which passes it on,
     waits for the save and requeues the job; the requeued job resumes and finishes.
-    Cost: 50 to 67 s measured on 2 busy cores (two jobs of a small training on the
+    Cost: 47 to 67 s measured on 2 busy cores (two jobs of a small training on the
     double)."""
     assert _directives(batch_script())["signal"].startswith("B:")
     _preempted_then_requeued(tmp_path, batch_only=True)

@@ -83,7 +83,7 @@ def _scan(run: Path, *flags: str) -> dict:
 def test_the_scan_stops_at_the_first_checkpoint_reaching_the_highest_fraction(run: Path) -> None:
     # the double's scripted flow takes about 4 % of the floor whatever the policy does:
     # 3 % is reached by the first checkpoint, 90 % never
-    scan = _scan(run, "--fractions", "0.03", "--out", "scan")
+    scan = _scan(run, "--model", "checkpoints", "--fractions", "0.03", "--out", "scan")
     assert "run: 3% of the floor: checkpoint 8 steps" in scan["stdout"]
     rows = scan["run"]["checkpoints"]
     assert [r["steps"] for r in rows] == [8]  # the scan stopped there
@@ -91,7 +91,8 @@ def test_the_scan_stops_at_the_first_checkpoint_reaching_the_highest_fraction(ru
     assert 0.03 <= rows[0]["settled_floor_fraction"] < 0.9
     assert len(rows[0]["per_start"]) == 2  # every held-out start
 
-    scan = _scan(run, "--out", "scan")  # 90 % and 95 %: every checkpoint, none reaching
+    # 90 % and 95 %: every checkpoint, none reaching
+    scan = _scan(run, "--model", "checkpoints", "--out", "scan")
     assert "90% of the floor: not within its 16 steps" in scan["stdout"]
     assert [r["steps"] for r in scan["run"]["checkpoints"]] == [8, 16]
     assert scan["run"]["reached"]["0.9"] is None
