@@ -53,7 +53,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.testing.chaos import describe_processes, pid_alive
+from gymprecice.testing.chaos import describe_processes, left_behind, pid_alive
 
 pytestmark = pytest.mark.skipif(
     not sys.platform.startswith("linux"), reason="/proc and PR_SET_PDEATHSIG are Linux's"
@@ -110,24 +110,6 @@ def jet_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 # -- finding the processes of a run -------------------------------------------------------------
-
-
-def left_behind(root: Path) -> set[int]:
-    """Live processes started for the commands run in ``root``: ``XDG_STATE_HOME`` under
-    ``root`` in their environment, or their working directory under ``root``."""
-    needle = f"XDG_STATE_HOME={root / 'state'}".encode()
-    found = set()
-    for entry in os.scandir("/proc"):
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            environ = Path(entry.path, "environ").read_bytes().split(b"\0")
-            cwd = Path(os.readlink(Path(entry.path, "cwd")))
-        except OSError:
-            continue
-        if (needle in environ or cwd.is_relative_to(root)) and pid_alive(int(entry.name)):
-            found.add(int(entry.name))
-    return found
 
 
 def _working_in(directory: Path) -> set[int]:

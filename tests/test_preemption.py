@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.testing.chaos import describe_processes, pid_alive
+from gymprecice.testing.chaos import describe_processes, left_behind
 
 pytestmark = pytest.mark.skipif(
     not sys.platform.startswith("linux"), reason="/proc and PR_SET_PDEATHSIG are Linux's"
@@ -84,24 +84,6 @@ def _run(root: Path, argv: list[str], log: str, timeout: float = 300) -> tuple[i
     finally:
         proc.kill()
     return status, (root / log).read_text()
-
-
-def left_behind(root: Path) -> set[int]:
-    """Live processes started for ``root``'s commands: ``XDG_STATE_HOME`` under ``root`` in
-    their environment, or their working directory under ``root``."""
-    needle = f"XDG_STATE_HOME={root / 'state'}".encode()
-    found = set()
-    for entry in os.scandir("/proc"):
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            environ = Path(entry.path, "environ").read_bytes().split(b"\0")
-            cwd = Path(os.readlink(Path(entry.path, "cwd")))
-        except OSError:
-            continue
-        if (needle in environ or cwd.is_relative_to(root)) and pid_alive(int(entry.name)):
-            found.add(int(entry.name))
-    return found
 
 
 def wait_gone(root: Path, within: float = GONE_WITHIN_S) -> tuple[set[int], float]:

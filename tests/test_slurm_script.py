@@ -30,7 +30,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.testing.chaos import describe_processes, pid_alive
+from gymprecice.testing.chaos import describe_processes, left_behind
 
 pytestmark = pytest.mark.skipif(
     not sys.platform.startswith("linux"), reason="/proc and PR_SET_PDEATHSIG are Linux's"
@@ -49,24 +49,6 @@ TRAINING = (
 _FENCE = re.compile(r"^```bash\n(.*?)^```", re.M | re.S)
 #: ``gymprecice train ENV OPTIONS`` up to its ``--out``, across continuation lines
 _TRAIN = re.compile(r"gymprecice train \S+ (?:[^\n]*\\\n)*?[^\n]*?(?=--out )", re.S)
-
-
-def left_behind(root: Path) -> set[int]:
-    """Live processes of the jobs run in ``root``: ``XDG_STATE_HOME`` under ``root`` in
-    their environment, or their working directory under ``root`` (never found by name)."""
-    needle = f"XDG_STATE_HOME={root / 'state'}".encode()
-    found = set()
-    for entry in os.scandir("/proc"):
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            environ = Path(entry.path, "environ").read_bytes().split(b"\0")
-            cwd = Path(os.readlink(Path(entry.path, "cwd")))
-        except OSError:
-            continue
-        if (needle in environ or cwd.is_relative_to(root)) and pid_alive(int(entry.name)):
-            found.add(int(entry.name))
-    return found
 
 
 def wait_gone(root: Path, within: float = 5.0) -> set[int]:

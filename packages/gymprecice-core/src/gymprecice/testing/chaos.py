@@ -82,6 +82,7 @@ __all__ = [
     "inject",
     "is_mpi_singleton_daemon",
     "is_owner_watchdog",
+    "left_behind",
     "pid_alive",
     "process_family",
     "env_processes",
@@ -506,3 +507,22 @@ class CylinderEnv(Adapter):
             return float(rows[-1].split()[1])
         except (IndexError, ValueError):
             raise ValueError(f"{path}: corrupt forceCoeffs row {rows[-1]!r}") from None
+
+
+def left_behind(root: Path) -> set[int]:
+    """Live processes started for the commands a test ran in ``root``: ``XDG_STATE_HOME``
+    under ``root`` in their environment, or their working directory under ``root``
+    (never found by name)."""
+    needle = f"XDG_STATE_HOME={root / 'state'}".encode()
+    found = set()
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            environ = Path(entry.path, "environ").read_bytes().split(b"\0")
+            cwd = Path(os.readlink(Path(entry.path, "cwd")))
+        except OSError:
+            continue
+        if (needle in environ or cwd.is_relative_to(root)) and pid_alive(int(entry.name)):
+            found.add(int(entry.name))
+    return found
