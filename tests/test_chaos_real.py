@@ -31,13 +31,11 @@ Cost: 3.6 to 4.0 min for the six tests measured on 2 cores with little else runn
 each test states its own. Much of it is start-up: a resume of the jet cylinder measured
 18 s from its start to its env worker's, of 38 s.
 
-The kill before the first action of the jet cylinder finds a real gap, and the test says
-so as an expected failure until it is closed: the env's worker process is started by
-multiprocessing's forkserver, which stays alive as long as any of its children does (each
-child holds the server's "alive" pipe), so the worker's ``PR_SET_PDEATHSIG`` (tied to the
-forkserver) never fires, and the worker notices that the training is gone only when it
-answers its current request: after the whole pre-run. The env's worker started with
-``spawn`` (its parent the training itself) passed the same test.
+The kill before the first action of the jet cylinder is the hardest: the env's worker is a
+child of multiprocessing's forkserver, which lives as long as any of its children does,
+so the worker's ``PR_SET_PDEATHSIG`` (tied to the forkserver) cannot fire, and the worker
+is busy with the whole pre-run, not reading requests. It watches the training itself
+through a pidfd (gymprecice.vector.local), which this test proves.
 """
 
 from __future__ import annotations
@@ -167,12 +165,12 @@ class Run:
         return self.log.read_text().rsplit(f"== run {self.runs}\n", 1)[-1]
 
     def kill_when(
-        self, condition: Callable[[], bool], after: float = 0.0, left_ok: bool = False
+        self, condition: Callable[[], bool], after: float = 0.0
     ) -> tuple[dict[int, str], list[str]]:
         """Start, SIGKILL the command ``after`` seconds once ``condition()`` holds; check
-        that nothing of it is left within :data:`GONE_WITHIN_S` (``left_ok``: say what is
-        left instead, and kill it); the processes (pid and program) that worked in the
-        env's directory when it was killed, and what was left."""
+        that nothing of it is left within :data:`GONE_WITHIN_S`; the processes (pid and
+        program) that worked in the env's directory when it was killed, and what was
+        left (nothing)."""
         proc = self.start()
         try:
             deadline = time.monotonic() + 600
@@ -192,7 +190,7 @@ class Run:
                 left = left_behind(self.root)
             took = time.monotonic() - started
             described = describe_processes(left)
-            assert left_ok or not left, f"left {took:.1f} s after SIGKILL: {described}"
+            assert not left, f"left {took:.1f} s after SIGKILL: {described}"
             if not left:
                 print(f"all processes gone {took:.2f} s after the SIGKILL")
             return solvers, described
@@ -261,9 +259,7 @@ def _saving(run: Run) -> None:
 def test_jet_cylinder_killed_mid_prerun_leaves_nothing_and_resumes(tmp_path, jet_cache):
     """SIGKILL of ``gymprecice train jet-cylinder-fast`` a second into its pre-run: the
     pre-run's pimpleFoam and everything else gone within 10 s; the same command runs the
-    pre-run again (the killed one stored nothing) and finishes. An expected failure while
-    the env's worker outlives the training until its pre-run ends (module docstring); any
-    other failure fails.
+    pre-run again (the killed one stored nothing) and finishes.
 
     Cost: 70 s measured on 2 cores (141 s busy): blockMesh and a second of pre-run,
     then the resume's whole pre-run (about 45 s) and 12 coupled actions.
@@ -278,19 +274,13 @@ def test_jet_cylinder_killed_mid_prerun_leaves_nothing_and_resumes(tmp_path, jet
     def prerunning() -> bool:
         return (fluid / "log.prerun.pimpleFoam").is_file() and bool(_working_in(fluid))
 
-    solvers, left = run.kill_when(prerunning, after=1.0, left_ok=True)
+    solvers, left = run.kill_when(prerunning, after=1.0)
     assert "pimpleFoam" in solvers.values(), solvers
     assert not (fluid / "precice-Fluid-iterations.log").exists()  # never coupled
     assert not run.checkpoint(4).exists()
+    assert not left, left
     text = run.resume()
     assert "pre-run at t =" in text and "resuming from" not in text
-    if left and any("multiprocessing.forkserver" in line for line in left):
-        # The env's worker is a child of multiprocessing's forkserver, which every child
-        # keeps alive (each holds the server's "alive" pipe): its PR_SET_PDEATHSIG, tied to
-        # the forkserver, never fires while it lives, and it notices the learner is gone
-        # only when it answers the request it is busy with, here the whole pre-run.
-        pytest.xfail(f"the pre-run outlived the killed training: {left}")
-    assert not left, left
 
 
 @pytest.mark.precice

@@ -161,6 +161,12 @@ class Job:
     def output(self) -> str:
         return (self.tmp_path / f"slurm-{JOB_ID}.out").read_text()
 
+    def failure(self) -> str:
+        """The job's output for a failure message: its last lines (a traceback's end)
+        first, since a long message is cut at its end."""
+        text = self.output()
+        return "last lines:\n" + "\n".join(text.splitlines()[-12:]) + "\n\nwhole:\n" + text
+
 
 def _requeues(tmp_path: Path) -> list[str]:
     log = tmp_path / "scontrol.log"
@@ -192,7 +198,7 @@ def _preempted_then_requeued(tmp_path: Path, batch_only: bool) -> None:
     finally:
         second.end(0)
     text = second.output()
-    assert status == 0 and not killed, text
+    assert status == 0 and not killed, second.failure()
     assert f"gymprecice train: resuming from {saved}" in text
     result = json.loads((run / "manifest.json").read_text())["result"]
     assert result["interrupted"] is None and result["timesteps"] >= 64

@@ -6,6 +6,13 @@ waits on all pipes and process sentinels at once with one ``poll(2)``; a reply i
 with a deadline even after its first bytes arrived, so a worker stopped half-way through
 a message cannot block the learner. A worker whose parent dies gets SIGTERM and kills
 its env's recorded process groups, so a learner killed with SIGKILL leaves no solver.
+
+Two layers tell a worker that its learner is gone. ``PR_SET_PDEATHSIG`` fires when the
+worker's parent exits, but a forkserver worker's parent is the forkserver, which lives as
+long as any worker holds its "alive" pipe: the worker would notice only when it next reads
+a request, after the whole pre-run it may be busy with. So each worker also watches the
+learner itself, through a pidfd (a descriptor that becomes readable when that very process
+exits, never a recycled pid), and sends itself SIGTERM when it does.
 """
 
 from __future__ import annotations
@@ -19,6 +26,7 @@ import select
 import signal
 import struct
 import sys
+import threading
 import time
 from collections.abc import Mapping, Sequence
 from multiprocessing.connection import Connection, wait
@@ -26,6 +34,7 @@ from multiprocessing.reduction import ForkingPickler
 from pathlib import Path
 from typing import Any
 
+from gymprecice.pidregistry import process_starttime
 from gymprecice.processes import kill_recorded_groups
 from gymprecice.vector import host
 from gymprecice.vector.contract import CRASH, TIMEOUT, Reply
@@ -54,6 +63,35 @@ def _die_with_parent() -> None:
         libc.prctl(pr_set_pdeathsig, int(signal.SIGTERM), 0, 0, 0)
 
 
+def _die_with_learner(pid: int, starttime: int | None) -> None:
+    """SIGTERM to this worker when the learner (``pid``, started at ``starttime``) exits.
+
+    A thread waits on a pidfd of the learner; where pidfds are missing (Linux before 5.3)
+    it looks every half second. A learner already gone, or a pid that now names another
+    process, ends the worker at once.
+    """
+    if not sys.platform.startswith("linux") or pid == os.getpid():
+        return
+    try:
+        fd: int | None = os.pidfd_open(pid)
+    except (AttributeError, OSError):
+        fd = None
+
+    def same_learner() -> bool:
+        now = process_starttime(pid)
+        return now is not None and (starttime is None or now == starttime)
+
+    def wait_for_exit() -> None:
+        if fd is not None and same_learner():
+            select.select([fd], [], [])
+        else:
+            while same_learner():
+                time.sleep(0.5)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=wait_for_exit, name="gymprecice-learner-watch", daemon=True).start()
+
+
 def _redirect_output(log_path: str, index: int) -> None:
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
     os.dup2(fd, 1)
@@ -76,13 +114,19 @@ def _send(conn: Connection, reply: tuple[str, Any], fatal: tuple[type[BaseExcept
 
 
 def _worker_main(
-    index: int, payload: bytes, conn: Connection, log_path: str, environ: dict[str, str]
+    index: int,
+    payload: bytes,
+    conn: Connection,
+    log_path: str,
+    environ: dict[str, str],
+    learner: tuple[int, int | None] | None = None,
 ) -> None:
     """Body of an env worker process: build the env, then serve requests until closed.
 
     ``environ`` is the learner's environment when it started this worker: a forkserver
     child would otherwise see the environment the server was started with, and miss
     variables set since (``GYMPRECICE_PRECICE_LIBRARY``, MPI or license settings).
+    ``learner`` is the learner's pid and start time: the worker ends when it does.
     """
     with contextlib.suppress(OSError):
         os.setsid()  # own process group: one signal reaches everything the env started
@@ -96,6 +140,8 @@ def _worker_main(
     signal.signal(signal.SIGTERM, on_term)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the learner decides when to stop
     _die_with_parent()
+    if learner is not None:
+        _die_with_learner(*learner)
     fatal: tuple[type[BaseException], ...] = ()
     env: Any = None
     run_dir: str | None = None
@@ -224,7 +270,7 @@ class LocalBackend:
             offset = 0
         process = self._ctx.Process(  # type: ignore[attr-defined]
             target=_worker_main,
-            args=(index, payload, child, str(log_path), dict(os.environ)),
+            args=(index, payload, child, str(log_path), dict(os.environ), _learner()),
             name=f"gymprecice-env-{index}",
             daemon=self.daemon,
         )
@@ -319,6 +365,11 @@ def recv_bytes(fd: int, deadline: float) -> bytes:
         if header is None and needed == 12 and len(buffer) >= 12:
             header, needed = 12, 12 + struct.unpack_from("!Q", buffer, 4)[0]
     return bytes(buffer[header:needed])
+
+
+def _learner() -> tuple[int, int | None]:
+    """This process, as a worker's learner: its pid and start time."""
+    return os.getpid(), process_starttime(os.getpid())
 
 
 def _default_start_method() -> str:

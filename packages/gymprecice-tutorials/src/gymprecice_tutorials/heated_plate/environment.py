@@ -14,7 +14,11 @@ an instant the agent does not know (a faster flow cools the plate).
   case ramps it linearly across the step's 10 time windows.
 * **Observation** ``(4,)``: the mean interface temperature minus the setpoint (K), its
   change over the last step (K), the heater temperature minus 310 K (the tutorial's fixed
-  bottom temperature), and the inflow velocity (m/s).
+  bottom temperature), and the inflow velocity (m/s). ``observation="integral"`` appends a
+  fifth number, ``(5,)``: the error integrated over the episode so far (K s), what a PID's
+  integral term sums. Without it the controller cannot tell a lasting offset from a
+  passing one, and holds the interface below the setpoint after a faster inflow
+  (docs/benchmark.md).
 * **Reward**: ``-(|T - T_set| + actuation_cost * |T_heater - 310 K|)`` with ``T`` the mean
   interface temperature at the step's end: the tracking error in K plus the heater's
   departure from the tutorial's 310 K, weighted by ``actuation_cost`` (default 0.02).
@@ -58,6 +62,7 @@ from gymprecice_tutorials.heated_plate.packaged_case import SOLIDS, case_files
 
 __all__ = [
     "ACTION_TIME",
+    "OBSERVATIONS",
     "EVAL_STARTS",
     "HEATER_RANGE",
     "SOLIDS",
@@ -72,6 +77,9 @@ ACTION_TIME = 0.1
 #: the heater temperature range (K) and the tutorial's fixed bottom temperature
 HEATER_RANGE = (300.0, 340.0)
 REFERENCE_HEATER = 310.0
+#: what the controller may see (``observation=``): the four numbers of the module
+#: docstring, or those and the episode's integrated error
+OBSERVATIONS = ("state", "integral")
 #: the tutorial's inflow velocity (m/s), before an episode's step
 REFERENCE_INFLOW = 0.1
 INFLOW_RANGE = (0.03, 0.3)
@@ -137,6 +145,7 @@ class HeatedPlateEnv(Adapter):
         episode_time: float = 2.0,
         settle_time: float = 0.3,
         actuation_cost: float = 0.02,
+        observation: str = "state",
         uncontrolled: bool = False,
         double: bool = False,
         run_root: str | Path | None = None,
@@ -155,7 +164,12 @@ class HeatedPlateEnv(Adapter):
                 f"episode_time and settle_time must be positive, got {episode_time} and "
                 f"{settle_time}"
             )
+        if observation not in OBSERVATIONS:
+            raise ValueError(
+                f"observation must be one of {', '.join(OBSERVATIONS)}, got {observation!r}"
+            )
         self.solid = solid
+        self.observation = observation
         self.episode_time = float(episode_time)
         self.settle_time = float(settle_time)
         end_time = self.settle_time + self.episode_time
@@ -182,12 +196,14 @@ class HeatedPlateEnv(Adapter):
         self.action_space = gym.spaces.Box(
             low=np.float32(HEATER_RANGE[0]), high=np.float32(HEATER_RANGE[1]), shape=(1,)
         )
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(4,), dtype=np.float32)
+        size = 5 if observation == "integral" else 4
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
         self.start = EVAL_STARTS[0]
         self._split, self._split_seed = "train", None
         self._heater = REFERENCE_HEATER
         self._temperature = math.nan
         self._previous = math.nan
+        self._integral = 0.0
 
     def packaged_case(self, end_time: float) -> tuple[str, dict[str, str]]:
         """The packaged case's name and files for a run ending at ``end_time`` (a training
@@ -278,15 +294,13 @@ class HeatedPlateEnv(Adapter):
         self._previous = self._temperature
         self._temperature = self.plate_temperature(read_data[ref])
         change = 0.0 if math.isnan(self._previous) else self._temperature - self._previous
-        return np.array(
-            [
-                self._temperature - self.start.setpoint,
-                change,
-                self._heater - REFERENCE_HEATER,
-                self.inflow_velocity(self.time),
-            ],
-            dtype=np.float32,
-        )
+        error = self._temperature - self.start.setpoint
+        if self.time > self.settle_time + 1e-9:  # the episode's steps, not the settling
+            self._integral += error * ACTION_TIME
+        values = [error, change, self._heater - REFERENCE_HEATER, self.inflow_velocity(self.time)]
+        if self.observation == "integral":
+            values.append(self._integral)
+        return np.array(values, dtype=np.float32)
 
     def _get_reward(self) -> float:
         error = abs(self._temperature - self.start.setpoint)
@@ -295,12 +309,14 @@ class HeatedPlateEnv(Adapter):
     def _close_external_resources(self) -> None:
         self._temperature = math.nan
         self._previous = math.nan
+        self._integral = 0.0
 
     def _initial_action(self) -> np.ndarray:
         """Choose this episode's start; every run begins at the tutorial's 310 K heater."""
         fixed = fixed_start(self._split, self._split_seed, EVAL_STARTS, VALIDATION_STARTS)
         self.start = fixed or draw_start(self.np_random, self.episode_time)
         self._heater = REFERENCE_HEATER
+        self._integral = 0.0
         return np.array([REFERENCE_HEATER], dtype=np.float32)
 
     # -- Gymnasium API -----------------------------------------------------------------------
