@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 from pathlib import Path
 from typing import Any
@@ -85,7 +86,9 @@ def lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
                 flush=True,
             )
     out.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(settings, indent=2) + "\n")
+    tmp = path.with_name(f".{path.name}.tmp")  # a kill mid-write keeps the settings whole
+    tmp.write_text(json.dumps(settings, indent=2) + "\n")
+    os.replace(tmp, path)
 
 
 def _with_defaults(saved: dict[str, Any]) -> dict[str, Any]:

@@ -16,6 +16,9 @@ run directory). Added here: the validation starts, the record, a last validation
 final model (so the kept model is never worse on validation than the final one), the
 best score and ``eval/evaluations.npz`` that survive a resume, and with ``--normalize``
 the normalisation statistics saved beside the kept model, which is unusable without them.
+The kept model and its statistics are saved whole or not at all
+(:func:`~gymprecice_lab.callbacks.save_checkpoint`), and then its record: a run killed
+mid-save keeps the kept model before it, with the record that names it.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
+from gymprecice_lab.callbacks import save_checkpoint
 from gymprecice_lab.envs import make_env, vecnormalize_path
 from gymprecice_lab.kept_model import KEPT_RECORD
 from gymprecice_lab.lab_env import LabEnv
@@ -47,7 +51,7 @@ EVAL_SEED_OFFSET = 10_000
 
 
 class _SaveBest(BaseCallback):
-    """Called by ``EvalCallback`` on a new best: record it and save its statistics."""
+    """Called by ``EvalCallback`` on a new best: save it with its statistics, record it."""
 
     def __init__(
         self, out: Path, normalize: bool, labels: tuple[str, ...], started_at: float | None
@@ -74,14 +78,18 @@ class _SaveBest(BaseCallback):
                 round(now - self.started_at, 1) if self.started_at is not None else None
             ),
         }
+        kept = self.out / "best_model.zip"
+        stats = self.model.get_vec_normalize_env() if self.normalize else None
+        save_checkpoint(
+            self.model,
+            kept,
+            stats=stats,
+            stats_path=vecnormalize_path(kept) if stats is not None else None,
+        )
         (self.out / "eval").mkdir(exist_ok=True)
         tmp = self.out / "eval" / ".best.json.tmp"
         tmp.write_text(json.dumps(record, indent=2) + "\n")
         tmp.replace(self.out / KEPT_RECORD)
-        if self.normalize:
-            vec = self.model.get_vec_normalize_env()
-            if vec is not None:
-                vec.save(str(vecnormalize_path(self.out / "best_model.zip")))
         return True
 
 
@@ -158,7 +166,7 @@ def eval_callback(
         n_eval_episodes=n_eval_episodes * max(1, len(agents)),
         eval_freq=max(1, eval_freq // slots),
         log_path=str(out / "eval"),
-        best_model_save_path=str(out),
+        best_model_save_path=None,  # _SaveBest saves it whole
         deterministic=True,
         verbose=0,
     )
