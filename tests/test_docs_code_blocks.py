@@ -6,7 +6,10 @@ otherwise: ``<!-- docs-test: compile ... -->`` (it needs names the reader suppli
 the fake cylinder flow writing OpenFOAM-format probes and force coefficients), or
 ``<!-- docs-test: plugin -->`` (registered as a plugin and its hooks called), or
 ``<!-- docs-test: compose-... -->`` (docs/composing.md's files and envs, run together by
-tests/test_docs_composing.py, which also runs its XML and JSON blocks). Blocks that
+tests/test_docs_composing.py, which also runs its XML and JSON blocks), or
+``<!-- docs-test: own-env-... -->`` (docs/tutorials/your-own-environment.md's edits and
+scripts, replayed in order on a package `gymprecice new` writes, by
+tests/test_docs_own_env.py). Blocks that
 define an env are constructed and stepped, so an example that cannot run fails here. A
 block that only includes a file (``--8<-- "examples/x.py"``) is skipped: the file is
 tested where it lives (tests/test_examples.py; RLlib's in tests/test_rllib.py).
@@ -77,7 +80,8 @@ def _only(mode: str) -> Block:
 def test_the_blocks_are_found() -> None:
     modes = ("run", "compile", "jet-env", "plugin", "plugin-guide")
     assert {"jet-env", "plugin", "plugin-guide", "compile"} <= {b.mode for b in BLOCKS}
-    assert all(b.mode in modes or b.mode.startswith("compose-") for b in BLOCKS), BLOCKS
+    prefixes = ("compose-", "own-env-")
+    assert all(b.mode in modes or b.mode.startswith(prefixes) for b in BLOCKS), BLOCKS
 
 
 @pytest.mark.parametrize("block", BLOCKS, ids=[b.id for b in BLOCKS])
