@@ -188,3 +188,36 @@ def test_observation_adds_the_tip_velocity(
     env.time = 0.1
     observation = env._get_observation({}, [])
     np.testing.assert_allclose(observation, [0.03, 0.002, 0.4, 0.02, 1.5, -2.0], rtol=1e-6)
+
+
+def test_the_history_observation_shows_the_tips_last_positions_newest_first(
+    tmp_path: Path,
+) -> None:
+    """``observation="history"``: the six numbers of the state, then the tip's (dx, dy) at
+    the ends of the three steps before (the gust's, at the episode's start), shifted by
+    one each step. Cost: under 3 s."""
+    from gymprecice_tutorials.perpendicular_flap.environment import TIP_HISTORY
+
+    env = PerpendicularFlapFastEnv(double=True, observation="history", run_root=tmp_path)
+    try:
+        assert env.observation_space.shape == (6 + 2 * TIP_HISTORY,)
+        obs, _ = env.reset(seed=1)
+        past = obs[6:].reshape(TIP_HISTORY, 2)
+        assert np.all(past != 0.0)  # the gust's steps
+        for _ in range(4):
+            expected = np.concatenate([obs[None, :2], past[:-1]])
+            obs, *_ = env.step(np.array([2.0], np.float32))
+            past = obs[6:].reshape(TIP_HISTORY, 2)
+            np.testing.assert_array_equal(past, expected)
+    finally:
+        env.close()
+
+
+def test_an_unknown_observation_or_history_on_the_precice_route_is_refused(
+    tmp_path: Path,
+) -> None:
+    """Cost: under 0.1 s."""
+    with pytest.raises(ValueError, match="observation must be one of state, history"):
+        PerpendicularFlapFastEnv(double=True, observation="tip", run_root=tmp_path)
+    with pytest.raises(ValueError, match="with observe='precice' leave it out"):
+        PerpendicularFlapFastEnv(observe="precice", observation="history", run_root=tmp_path)

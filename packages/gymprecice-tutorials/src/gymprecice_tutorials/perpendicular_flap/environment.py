@@ -13,6 +13,10 @@ flap bends and springs back; the agent should keep the flap upright.
 * **Observation** ``(4,)``: the flap tip's displacement ``(dx, dy)`` and the force on the
   tip ``(fx, fy)`` at the end of the step, from the solid's preCICE watch point
   ``Flap-Tip`` (``precice-Solid-watchpoint-Flap-Tip.log`` in the solid's directory).
+  ``observation="history"`` appends the tip's displacement at the ends of the
+  :data:`TIP_HISTORY` steps before, ``(10,)`` (zeros before the run's first steps):
+  one sample of the tip says where it is, not where it swings; a short history gives the
+  phase and the speed of the swing.
 * **Reward**: ``-mean |d|`` over the time windows of the step, the mean magnitude of the
   tip displacement (metres, so a reward of -0.1 means the tip was 10 cm off its rest
   position on average). Averaging over every window of the step, rather than taking the
@@ -57,6 +61,11 @@ from gymprecice.core import Adapter
 from gymprecice.fields import Overlay
 from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.perpendicular_flap.packaged_case import SOLIDS, case_files, check_solid
+
+#: what the controller may see (``observation=``): the tip now, or with its recent past
+OBSERVATIONS = ("state", "history")
+#: the steps of the tip's past that ``observation="history"`` shows
+TIP_HISTORY = 3
 
 __all__ = [
     "INLET_HEIGHT",
@@ -121,9 +130,15 @@ class PerpendicularFlapEnv(Adapter):
         inlet_max_velocity: float = 10.0,
         jet_height: float = 2.0,
         watch_timeout: float = 120.0,
+        observation: str = "state",
         run_root: str | Path | None = None,
         **kwargs: Any,
     ) -> None:
+        if observation not in OBSERVATIONS:
+            raise ValueError(
+                f"observation must be one of {', '.join(OBSERVATIONS)}, got {observation!r}"
+            )
+        self.observation = observation
         self.solid = check_solid(solid)
         if options is None:
             options = write_case_files(f"perpendicular-flap-{solid}", case_files(solid), run_root)
@@ -139,9 +154,11 @@ class PerpendicularFlapEnv(Adapter):
             shape=(1,),
             dtype=np.float32,
         )
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(4,), dtype=np.float32)
+        size = 4 + (2 * TIP_HISTORY if observation == "history" else 0)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
         self._tip: Any = None  # the watch-point reader of the current episode
         self._step_rows = np.zeros((0, 0))
+        self._past = np.zeros((TIP_HISTORY, 2), dtype=np.float32)  # newest first
 
     # -- rendering -------------------------------------------------------------------------
     @property
@@ -186,7 +203,12 @@ class PerpendicularFlapEnv(Adapter):
         last = self._tip.data[-1:]
         displacement = self._tip.field("Displacement", last)[0]
         force = self._tip.field("Force", last)[0]
-        return np.concatenate([displacement, force]).astype(np.float32)
+        obs = np.concatenate([displacement, force]).astype(np.float32)
+        if self.observation == "history":
+            obs = np.concatenate([obs, self._past.reshape(-1)])
+            self._past = np.roll(self._past, 1, axis=0)
+            self._past[0] = displacement[:2]
+        return obs
 
     def _get_reward(self) -> float:
         rows = self._step_rows if len(self._step_rows) else self._tip.data[-1:]
@@ -196,6 +218,7 @@ class PerpendicularFlapEnv(Adapter):
     def _close_external_resources(self) -> None:
         self._tip = None
         self._step_rows = np.zeros((0, 0))
+        self._past = np.zeros((TIP_HISTORY, 2), dtype=np.float32)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Core's step, plus the applied jet centre and the tip's metrics in ``info``.
@@ -215,7 +238,8 @@ class PerpendicularFlapEnv(Adapter):
 
     # -- helpers ---------------------------------------------------------------------------
     def _initial_action(self) -> np.ndarray:
-        """Start each episode with the jet in the middle of the inlet."""
+        """Start each episode with the jet in the middle of the inlet, with no past."""
+        self._past = np.zeros((TIP_HISTORY, 2), dtype=np.float32)
         return np.array([INLET_HEIGHT / 2.0], dtype=np.float32)
 
     def jet_centre(self, action: Any) -> float:

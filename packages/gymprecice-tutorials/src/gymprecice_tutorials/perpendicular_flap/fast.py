@@ -70,6 +70,7 @@ from gymprecice_tutorials.episodes import episode_timing, fixed_start, read_spli
 from gymprecice_tutorials.perpendicular_flap import double as flap_double
 from gymprecice_tutorials.perpendicular_flap.environment import (
     INLET_HEIGHT,
+    TIP_HISTORY,
     PerpendicularFlapEnv,
     jet_profile,
 )
@@ -191,6 +192,11 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
                 "observe='precice' edits the packaged training case (a tip mesh, two more "
                 "coupling schemes); it runs on the real solvers, without options or double"
             )
+        if observe == "precice" and kwargs.get("observation") == "history":
+            raise ValueError(
+                "observation='history' keeps the watch point's past; with observe='precice' "
+                "leave it out"
+            )
         self.observe = observe
         self.episode_time, self.settle_time = episode_timing(ACTION_TIME, episode_time, settle_time)
         end_time = self.settle_time + self.episode_time
@@ -219,7 +225,8 @@ class PerpendicularFlapFastEnv(PerpendicularFlapEnv):
             self.set_interface_vertices("tip", [TIP])
             self.set_interface_vertices("force", [TIP])
         self._last_tip: np.ndarray | None = None  # the previous action's tip (precice route)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(6,), dtype=np.float32)
+        size = 6 + (2 * TIP_HISTORY if self.observation == "history" else 0)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
         self.uncontrolled = bool(uncontrolled)
         self.start: Gust | None = None
         self._split, self._split_seed = "train", None
