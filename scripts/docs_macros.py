@@ -146,6 +146,61 @@ def time_to_floor(recipe: str, fraction: float, results: Path = RESULTS) -> dict
     }
 
 
+#: the results table's rows: the task and objective, the learnt controllers (prefix,
+#: file, label), the best classical controller (prefix, file, label), the uncontrolled
+#: run's file; each file is docs/results/benchmark-<file>.json
+RESULT_ROWS: list[tuple[str, list[tuple[str, str, str]], tuple[str, str, str], str]] = [
+    (
+        "jet cylinder: share of the drag floor (higher is better)",
+        [("SAC", "jet-cylinder-fast", "SAC"), ("PPO", "jet-cylinder-fast", "PPO")],
+        ("feedback law", "jet-cylinder-fast", "best feedback"),
+        "jet-cylinder-fast",
+    ),
+    (
+        "rotating cylinder: the same",
+        [("SAC", "rotating-cylinder-fast", "SAC")],
+        ("feedback law", "rotating-cylinder-fast", "best feedback"),
+        "rotating-cylinder-fast",
+    ),
+    (
+        "flap: mean tip displacement (lower is better)",
+        [("PPO", "perpendicular-flap-fast", "PPO")],
+        ("sinusoid", "perpendicular-flap-fast", "best sinusoid"),
+        "perpendicular-flap-fast",
+    ),
+    (
+        "heated plate: mean tracking error (lower is better)",
+        [("SAC", "heated-plate-fast", "SAC")],
+        ("PID", "heated-plate-fast", "best PID"),
+        "heated-plate-fast",
+    ),
+    (
+        "two flaps: mean tip displacement of both (lower is better)",
+        [("SAC, one policy for both flaps", "two-flaps-fast", "SAC, shared policy")],
+        ("sinusoid", "two-flaps-fast", "best sinusoid"),
+        "two-flaps-fast",
+    ),
+]
+
+
+def results_table(results: Path = RESULTS) -> str:
+    """The benchmarks' headline figures as one short Markdown table (the README's): each
+    task's learnt controllers over seeds, its best classical controller and the
+    uncontrolled run, with 95 % intervals over seeds, from the result files."""
+    rows = [
+        "| task | learnt, over seeds | best classical | uncontrolled |",
+        "| --- | --- | --- | --- |",
+    ]
+    for task, learnt, (name, env, label), uncontrolled in RESULT_ROWS:
+        learnt_text = "; ".join(f"{n} {score(e, c, results)}" for n, e, c in learnt)
+        classical = f"{name} {score(env, label, results)}"
+        rows.append(
+            f"| {task} | {learnt_text} | {classical} | "
+            f"{score(uncontrolled, 'uncontrolled', results)} |"
+        )
+    return "\n".join(rows)
+
+
 def setup_figures(results: Path = RESULTS) -> dict[str, Any]:
     """The set-up's times on a fresh machine and a second time, and its steps as a table."""
     data = _load(results / "setup.json")
@@ -195,6 +250,7 @@ def define_env(env: Any) -> None:
     env.variables["setup"] = setup_figures()
     env.macro(command_reference)
     env.macro(score)
+    env.macro(results_table)
     env.macro(time_to_floor)
     env.filter(clock)
     env.filter(thousands)
