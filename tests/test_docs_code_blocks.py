@@ -7,7 +7,7 @@ the fake cylinder flow writing OpenFOAM-format probes and force coefficients), o
 ``<!-- docs-test: plugin -->`` (registered as a plugin and its hooks called), or
 ``<!-- docs-test: compose-... -->`` (docs/composing.md's files and envs, run together by
 tests/test_docs_composing.py, which also runs its XML and JSON blocks), or
-``<!-- docs-test: own-env-... -->`` (docs/tutorials/your-own-environment.md's edits and
+``<!-- docs-test: own-env-... -->`` (docs/guides/your-own-environment.md's edits and
 scripts, replayed in order on a package `gymprecice new` writes, by
 tests/test_docs_own_env.py). Blocks that
 define an env are constructed and stepped, so an example that cannot run fails here. A
