@@ -1,0 +1,7 @@
+"""The old path of :mod:`gymprecice_lab.rollouts.time_to_floor`: the same module object."""
+
+import sys
+
+from gymprecice_lab.rollouts import time_to_floor as _module
+
+sys.modules[__name__] = _module
