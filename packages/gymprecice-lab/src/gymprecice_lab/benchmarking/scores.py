@@ -29,7 +29,7 @@ def start_scores(summary: dict[str, Any], env: LabEnv, starts: int) -> dict[str,
     """Per start (in index order) the objective and, where recorded, the env's own metrics:
     the force coefficients over every solver step (the cylinders), the fractions of the
     card's reference and the episode mean of each of the card's ``metrics``."""
-    from gymprecice_lab.rollouts.evaluate import episodes_by_start
+    from gymprecice_lab.rollouts.records import episodes_by_start
     from gymprecice_lab.rollouts.sweep import objective
 
     episodes = episodes_by_start(summary)

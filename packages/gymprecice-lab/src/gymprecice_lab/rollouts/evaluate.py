@@ -1,5 +1,10 @@
 """``gymprecice evaluate | baseline | open-loop``: run a controller and record what happens.
 
+The command's work; its parts: the controllers (:mod:`gymprecice_lab.rollouts.controllers`),
+the loop (:mod:`gymprecice_lab.rollouts.rollout`) and the files and statistics
+(:mod:`gymprecice_lab.rollouts.records`). Their public names are also reachable here, as at
+the old path ``gymprecice_lab.evaluate``.
+
 All three run whole episodes of one environment with a fixed controller and write the
 same files, so ``gymprecice plot`` can put any of them side by side:
 
@@ -53,19 +58,14 @@ transfer, said in one line); see :mod:`gymprecice_lab.policies.shipped` and
 from __future__ import annotations
 
 import argparse
-import contextlib
-import csv
 import json
-import math
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 
-from gymprecice.card import FeedbackLaw, Reference, load_object
+from gymprecice.card import FeedbackLaw
 from gymprecice_lab.common.constructor_kwargs import build_env_kwargs
 from gymprecice_lab.common.manifest import file_sha256, read_manifest, write_manifest
 from gymprecice_lab.common.registered_env import (
@@ -76,13 +76,7 @@ from gymprecice_lab.common.registered_env import (
     find_lab_env,
 )
 from gymprecice_lab.common.requirements import require_solvers
-from gymprecice_lab.common.starts import (
-    StartsError,
-    evaluation_starts,
-    held_out_starts,
-    seed_start_label,
-    start_options,
-)
+from gymprecice_lab.common.starts import StartsError, evaluation_starts, held_out_starts
 from gymprecice_lab.common.wrapped_env import (
     load_model,
     load_normalizer,
@@ -93,363 +87,40 @@ from gymprecice_lab.common.wrapping import WrapError, wrap_spec
 from gymprecice_lab.policies.fitted_env import check_policy_env, policy_env_kwargs
 from gymprecice_lab.policies.policy import Policy, PolicyError
 from gymprecice_lab.policies.shipped import resolve_policy, shipped_policies
+from gymprecice_lab.rollouts.controllers import (
+    Controller,
+    law_point,
+    sine_controller,
+    zero_controller,
+)
 from gymprecice_lab.rollouts.feedback import FeedbackController
+from gymprecice_lab.rollouts.records import (
+    change_against,
+    coefficient_columns,
+    episodes_by_start,
+    floor_metrics,
+    over_episodes,
+)
+from gymprecice_lab.rollouts.rollout import rollout
 from gymprecice_lab.rollouts.video import (
     DEFAULT_NAME,
     VideoError,
-    VideoFile,
     check_renders,
     check_video_path,
-    episode_video_path,
 )
 
 __all__ = [
     "change_against",
     "coefficient_columns",
+    "episodes_by_start",
+    "floor_metrics",
+    "law_point",
     "over_episodes",
     "rollout",
     "rollout_command",
     "sine_controller",
     "zero_controller",
 ]
-
-#: ``controller(observation, time) -> action`` (in the env's own action space)
-Controller = Callable[[Any, float], Any]
-
-
-def zero_controller(space: gym.Space) -> Controller:
-    """The uncontrolled flow: the zero action clipped into the action box (the box's
-    nearest bound where zero lies outside it), in the env's own units."""
-    if isinstance(space, gym.spaces.Box):
-        action = np.clip(np.zeros(space.shape), space.low, space.high).astype(space.dtype)
-    else:
-        raise TypeError(f"baseline needs a Box action space, got {space}")
-    return lambda obs, t: action
-
-
-def sine_controller(
-    space: gym.Space,
-    amplitude: float,
-    frequency: float,
-    phase: float = 0.0,
-    centre: float = 0.5,
-) -> Controller:
-    """``centre + amplitude * half_range * sin(2 pi f t + phase)`` on every action dimension,
-    clipped to the box; ``centre`` is a fraction of the box (0.5: its middle)."""
-    if not isinstance(space, gym.spaces.Box):
-        raise TypeError(f"open-loop needs a Box action space, got {space}")
-    centre = space.low + centre * (space.high - space.low)
-    half = (space.high - space.low) / 2.0
-
-    def act(obs: Any, t: float) -> np.ndarray:
-        value = centre + amplitude * half * math.sin(2.0 * math.pi * frequency * t + phase)
-        return np.clip(value, space.low, space.high).astype(space.dtype)
-
-    return act
-
-
-def law_point(env_info: LabEnv, text: str | None) -> tuple[FeedbackLaw, dict[str, float]] | None:
-    """``gymprecice feedback --law "kp=3;ki=50;kd=1"``: the env's own feedback law and the
-    one point of it to run (``None``: the env's feedback is a signal fed back). Checked
-    before any env is built; a ``ValueError`` says what is missing."""
-    if env_info.feedback_law is None:
-        if text:
-            raise ValueError(
-                f"{env_info.name} has no feedback law of its own for --law (lab card field "
-                "'feedback_law'); its classical feedback is a signal fed back (--signal, "
-                "--gain, --delay)"
-            )
-        return None
-    law = load_object(env_info.feedback_law, "feedback_law")
-    example = law.grid_text({n: [v[0]] for n, v in law.default_grid().items()})
-    if not text:
-        raise ValueError(
-            f"{env_info.name}'s classical feedback is its {law.name} law ({law.summary}); "
-            f'pass --law with one value of each parameter, e.g. --law "{example}" '
-            f"(`gymprecice sweep {env_info.name}` tunes it)"
-        )
-    grid = law.parse_grid(text, "--law")
-    several = [n for n in law.parameters if len(grid[n]) != 1]
-    if several:
-        raise ValueError(
-            f"--law runs one {law.name} controller: give {', '.join(several)} one value "
-            f'each, e.g. --law "{example}" (`gymprecice sweep` tunes a grid)'
-        )
-    (point,) = law.points(grid)
-    return law, point
-
-
-def rollout(
-    env: gym.Env,
-    controller: Controller,
-    out: Path,
-    *,
-    episodes: int = 1,
-    seed: int = 0,
-    every_start: bool = False,
-    reference: Reference | None = None,
-    video: Path | None = None,
-) -> dict[str, Any]:
-    """Run ``episodes`` whole episodes and write history, coefficients and summary.
-
-    ``every_start``: episode k runs the env's held-out start k (mod their number), the
-    same for every controller and seed (an env without held-out starts: its seed
-    ``seed + k``, the start labelled so); otherwise the held-out split draws each
-    episode's start from its seed (``seed + k``). ``reference`` (the card's, a drag
-    floor): each episode's summary also gives its settled mean of the reference's metric
-    and the fractions of the floor it reaches. ``video``: each episode's frames (the env
-    renders) go to :func:`~gymprecice_lab.rollouts.video.episode_video_path`.
-    """
-    out.mkdir(parents=True, exist_ok=True)
-    history_rows: list[dict[str, Any]] = []
-    coefficient_rows: list[tuple[int, float, float, float]] = []
-    summaries = []
-    starts = held_out_starts(env) if every_start else ()
-    seeded = every_start and not starts  # starts are seeds
-    for episode in range(episodes):
-        options = start_options(episode, len(starts))
-        path = episode_video_path(video, episode, episodes) if video is not None else None
-        rows, coefficients, summary_row, t0 = _episode(
-            env, controller, episode, seed + episode, options, path
-        )
-        if starts:
-            summary_row["start"] = options["start"]
-            summary_row["start_label"] = starts[options["start"]]
-        elif seeded:
-            summary_row["start"] = episode
-            summary_row["start_label"] = seed_start_label(seed + episode)
-        if path is not None:
-            summary_row["video"] = str(path)
-        summary_row.update(
-            {
-                f"mean_{name}": _nanmean([r.get(name, math.nan) for r in rows])
-                for name in _metric_names(rows)
-            }
-        )
-        summary_row.update(series_means([c[2:] for c in coefficients]))
-        if reference is not None:
-            summary_row.update(floor_metrics(coefficients, t0, reference, rows))
-        history_rows += rows
-        coefficient_rows += coefficients
-        summaries.append(summary_row)
-    columns = coefficient_columns(_metric_names(history_rows))
-    return _write_rollout(out, history_rows, coefficient_rows, summaries, columns)
-
-
-def _episode(
-    env: gym.Env,
-    controller: Controller,
-    episode: int,
-    seed: int,
-    options: dict[str, Any],
-    video: Path | None = None,
-) -> tuple[list[dict[str, Any]], list[tuple[int, float, float, float]], dict[str, Any], float]:
-    """Run one whole episode (its frames into ``video``): its history rows, its solver
-    steps' coefficients, the start of its summary row and the coupling time it began at."""
-    obs, info = env.reset(seed=seed, options=options)
-    if hasattr(controller, "reset"):
-        controller.reset()
-    rows: list[dict[str, Any]] = []
-    coefficients: list[tuple[int, float, float, float]] = []
-    t = t0 = float(info.get("time", 0.0))
-    total, step = 0.0, 0
-    with _recording(env, video) as recording:
-        while True:
-            action = controller(obs, t)
-            obs, reward, terminated, truncated, info = env.step(action)
-            if hasattr(controller, "observe"):
-                controller.observe(info)
-            step += 1
-            total += float(reward)
-            start, t = t, float(info.get("time", t))
-            physical = info.get("action", np.asarray(action, dtype=float).reshape(-1).tolist())
-            row: dict[str, Any] = {
-                "episode": episode,
-                "step": step,
-                "start": start,
-                "time": t,
-                "reward": float(reward),
-            }
-            row.update({name: float(v) for name, v in info.get("metrics", {}).items()})
-            row.update({f"action_{i}": float(a) for i, a in enumerate(physical)})
-            rows.append(row)
-            for time_, cd, cl in np.asarray(info.get("coefficients", np.zeros((0, 3)))):
-                coefficients.append((episode, float(time_), float(cd), float(cl)))
-            if recording is not None:
-                recording.add(env.render())
-            if terminated or truncated:
-                break
-    summary = {"episode": episode, "steps": step, "return": total, "end_time": t}
-    return rows, coefficients, summary, t0
-
-
-def _recording(env: gym.Env, path: Path | None) -> Any:
-    """The episode's video at ``path`` (a context), its first frame (the state after
-    reset) added; a context of ``None`` without ``path``."""
-    if path is None:
-        return contextlib.nullcontext()
-    fps = float(env.metadata.get("render_fps") or 4)
-    recording = VideoFile(path, fps)
-    try:
-        recording.add(env.render())
-    except BaseException:
-        recording.__exit__(None, None, None)
-        raise
-    return recording
-
-
-def _metric_names(rows: list[dict[str, Any]]) -> list[str]:
-    """The metrics an episode's rows record, in their order."""
-    return list(
-        dict.fromkeys(
-            name
-            for r in rows
-            for name in r
-            if name not in _NOT_METRICS and not name.startswith("action_")
-        )
-    )
-
-
-def _write_rollout(
-    out: Path,
-    history_rows: list[dict[str, Any]],
-    coefficient_rows: list[tuple[int, float, float, float]],
-    summaries: list[dict[str, Any]],
-    columns: list[str],
-) -> dict[str, Any]:
-    """``history.csv``, ``coefficients.csv`` (only ``columns`` of the coefficients; none
-    without any: an earlier run's file is removed, so that plot reads no stale one) and
-    ``summary.json``; the summary."""
-    _write_csv(out / "history.csv", history_rows)
-    _write_coefficients(out / "coefficients.csv", coefficient_rows, columns)
-    summary = {
-        "episodes": summaries,
-        "mean_return": float(np.mean([s["return"] for s in summaries])),
-        "over_episodes": over_episodes(summaries),
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    return summary
-
-
-#: the columns of ``info["coefficients"]`` rows after their time, in order
-COEFFICIENTS = ("Cd", "Cl")
-
-
-def coefficient_columns(metrics: list[str]) -> list[str]:
-    """The force coefficients an env reports among its ``info["metrics"]`` names: the
-    columns of its ``coefficients.csv`` (none for an env without force coefficients)."""
-    return [name for name in COEFFICIENTS if name in metrics]
-
-
-def _write_coefficients(
-    path: Path, rows: list[tuple[int, float, float, float]], columns: list[str]
-) -> None:
-    """``episode, time`` and ``columns`` of every solver step's row; no file (and none
-    left from an earlier run) when ``columns`` is empty."""
-    if not columns:
-        path.unlink(missing_ok=True)
-        return
-    keep = [2 + COEFFICIENTS.index(name) for name in columns]
-    with path.open("w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["episode", "time", *columns])
-        writer.writerows([(row[0], row[1], *(row[k] for k in keep)) for row in rows])
-
-
-def episodes_by_start(summary: dict[str, Any]) -> list[dict[str, Any]]:
-    """A summary's episodes in held-out start order (episode order without starts)."""
-    return sorted(summary["episodes"], key=lambda e: int(e.get("start", e["episode"])))
-
-
-def series_means(coefficients: list[tuple[float, float]]) -> dict[str, float]:
-    """Mean Cd and mean |Cl| over an episode's solver steps (none without coefficients)."""
-    if not coefficients:
-        return {}
-    cd, cl = np.asarray(coefficients, dtype=float).T
-    return {"series_mean_Cd": float(cd.mean()), "series_mean_abs_Cl": float(np.abs(cl).mean())}
-
-
-def floor_metrics(
-    coefficients: list[tuple[int, float, float, float]],
-    t0: float,
-    floor: Reference,
-    rows: list[dict[str, Any]] | None = None,
-) -> dict[str, float]:
-    """The settled mean of the reference's metric (from ``t0 + settle_time`` on) and the
-    fractions of the floor that the whole episode's and the settled mean reach.
-
-    A cylinder's ``Cd``/``Cl`` is read over every solver step (``coefficients``:
-    ``series_settled_mean_Cd``); any other metric, or one without coefficients, from the
-    episode's per-action ``rows`` (``settled_mean_<metric>``). None when neither has it."""
-    metric = floor.metric
-    if metric in ("Cd", "Cl") and coefficients:
-        _, time, cd, cl = np.asarray(coefficients, dtype=float).T
-        values, key = (cd if metric == "Cd" else cl), f"series_settled_mean_{metric}"
-    else:
-        pairs = [(r["time"], r[metric]) for r in rows or () if r.get(metric) is not None]
-        if not pairs:
-            return {}
-        time, values = np.asarray(pairs, dtype=float).T
-        key = f"settled_mean_{metric}"
-    out = {"floor_fraction": floor.fraction(float(values.mean()))}
-    settled = values[time >= t0 + floor.settle_time - 1e-9]
-    if settled.size:
-        out[key] = float(settled.mean())
-        out["settled_floor_fraction"] = floor.fraction(float(settled.mean()))
-    return out
-
-
-def over_episodes(episodes: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:
-    """Mean, standard deviation (``ddof=0``) and count over episodes of each scalar."""
-    keys = [
-        k
-        for k in episodes[0]
-        if k not in ("episode", "steps", "end_time", "start", "start_label", "video")
-    ]
-    out: dict[str, dict[str, float | int]] = {}
-    for key in keys:
-        values = np.array([e[key] for e in episodes if e.get(key) is not None], dtype=float)
-        values = values[np.isfinite(values)]
-        if values.size:
-            out[key] = {
-                "mean": float(values.mean()),
-                "std": float(values.std()),
-                "n": int(values.size),
-            }
-    return out
-
-
-def change_against(summary: dict[str, Any], baseline: dict[str, Any]) -> dict[str, float]:
-    """% change of each mean over episodes against a baseline summary's (same keys)."""
-    ours, theirs = summary["over_episodes"], baseline.get("over_episodes")
-    if theirs is None:  # a summary written before over_episodes existed
-        theirs = over_episodes(baseline["episodes"])
-    out = {}
-    for key, stats in ours.items():
-        ref = theirs.get(key, {}).get("mean")
-        if ref:
-            out[key] = 100.0 * (stats["mean"] - ref) / abs(ref)
-    return out
-
-
-_NOT_METRICS = {"episode", "step", "start", "time", "reward"}
-
-
-def _nanmean(values: list[Any]) -> float | None:
-    array = np.asarray(values, dtype=float)
-    if not array.size or np.all(np.isnan(array)):
-        return None
-    return float(np.nanmean(array))
-
-
-def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
-    fields: list[str] = []
-    for row in rows:
-        fields += [k for k in row if k not in fields]
-    with path.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=fields or ["episode"])
-        writer.writeheader()
-        writer.writerows(rows)
 
 
 def _policy(args: argparse.Namespace, env: LabEnv) -> Policy:

@@ -51,13 +51,10 @@ from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, default_ou
 from gymprecice_lab.common.requirements import require_solvers
 from gymprecice_lab.common.starts import StartsError, describe_starts, held_out_starts
 from gymprecice_lab.common.wrapped_env import make_env_checked
-from gymprecice_lab.rollouts.evaluate import (
-    episodes_by_start,
-    rollout,
-    sine_controller,
-    zero_controller,
-)
+from gymprecice_lab.rollouts.controllers import sine_controller, zero_controller
 from gymprecice_lab.rollouts.feedback import FeedbackController, own_law_grid
+from gymprecice_lab.rollouts.records import episodes_by_start
+from gymprecice_lab.rollouts.rollout import rollout
 
 __all__ = [
     "SweepJob",

@@ -43,7 +43,7 @@ import numpy as np
 from gymprecice.card import Reference
 from gymprecice_lab.common.command_runs import CommandFailed, evaluated, run_commands
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env
-from gymprecice_lab.rollouts.evaluate import episodes_by_start
+from gymprecice_lab.rollouts.records import episodes_by_start
 
 __all__ = [
     "Checkpoint",
