@@ -2,7 +2,7 @@
 
 The lab is built in wings, one sub-package each: :mod:`.cli` (the commands' parsers),
 :mod:`.training` (train, tune), :mod:`.rollouts` (evaluate and the fixed controllers,
-sweep, compare, time-to-floor, plot), :mod:`.benchmarking` (benchmark),
+sweep, compare, plot), :mod:`.benchmarking` (benchmark, time-to-floor),
 :mod:`.policies` (shipped and shipping policies), :mod:`.model_based` (model-ensemble
 PPO) and :mod:`.common` (ENV and its card, the wrapped env, starts, manifests).
 

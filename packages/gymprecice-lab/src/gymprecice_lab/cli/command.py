@@ -63,7 +63,7 @@ def run(command: str, args: argparse.Namespace) -> int:
 
         return benchmark_command(args)
     if command == "time-to-floor":
-        from gymprecice_lab.rollouts.time_to_floor import time_to_floor_command
+        from gymprecice_lab.benchmarking.time_to_floor import time_to_floor_command
 
         return time_to_floor_command(args)
     if command == "plot":

@@ -275,7 +275,7 @@ class _ModelAction(argparse.Action):
     was (the older spelling of ``--policy PATH``)."""
 
     def __call__(self, parser: Any, namespace: Any, values: Any, option_string: Any = None) -> None:
-        from gymprecice_lab.training.kept_model import MODEL_CHOICES
+        from gymprecice_lab.common.kept_model import MODEL_CHOICES
 
         if values in MODEL_CHOICES:
             namespace.model = values

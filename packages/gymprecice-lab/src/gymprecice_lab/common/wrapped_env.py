@@ -294,12 +294,12 @@ def find_model(path: Path, which: str = "kept") -> tuple[Path, str | None]:
     """The model file for ``path`` (a ``.zip`` or a training directory) and a note.
 
     A training directory gives its kept model (the best of its validations,
-    :mod:`gymprecice_lab.training.kept_model`) with ``which="kept"``, else or failing that its
+    :mod:`gymprecice_lab.common.kept_model`) with ``which="kept"``, else or failing that its
     ``model.zip``, and the note says which; a run stopped before writing either (killed,
     out of time) gives its newest checkpoint, with a note saying so.
     ``FileNotFoundError`` explains what was looked for.
     """
-    from gymprecice_lab.training.kept_model import choose_model
+    from gymprecice_lab.common.kept_model import choose_model
 
     if path.is_file():
         return path, None

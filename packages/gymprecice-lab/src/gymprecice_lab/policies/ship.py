@@ -24,6 +24,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from gymprecice_lab.common.kept_model import KEPT_MODEL, read_kept
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env
 from gymprecice_lab.policies.fitted_env import MACHINE_KWARGS, describe_env
 from gymprecice_lab.policies.policy import (
@@ -40,7 +41,6 @@ from gymprecice_lab.policies.slim_model import (
     write_frozen_stats,
     write_slim_model,
 )
-from gymprecice_lab.training.kept_model import KEPT_MODEL, read_kept
 from gymprecice_lab.training.shared_policy import per_row
 
 __all__ = ["ship_command", "ship_policy"]

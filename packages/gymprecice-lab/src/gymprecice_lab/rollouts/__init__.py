@@ -2,6 +2,5 @@
 
 ``gymprecice evaluate | baseline | open-loop | feedback`` (:mod:`.evaluate`, with the
 controllers of :mod:`.controllers` and :mod:`.feedback`, the loop of :mod:`.rollout`
-and the files of :mod:`.records`), ``sweep``, ``compare``, ``time-to-floor`` and
-``plot``; ``--video`` (:mod:`.video`).
+and the files of :mod:`.records`), ``sweep``, ``compare`` and ``plot``; ``--video`` (:mod:`.video`).
 """

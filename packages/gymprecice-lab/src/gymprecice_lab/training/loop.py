@@ -180,7 +180,7 @@ def _validate_final(evaluator: Any, validate_final: Any) -> str | None:
 
 def _kept(out: Path) -> dict[str, Any] | None:
     """The kept model's record, with its file's checksum (``None``: none kept)."""
-    from gymprecice_lab.training.kept_model import read_kept
+    from gymprecice_lab.common.kept_model import read_kept
 
     record = read_kept(out)
     if record is None:

@@ -44,13 +44,13 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice_lab.common.constructor_kwargs import build_env_kwargs
+from gymprecice_lab.common.kept_model import kept_summary
 from gymprecice_lab.common.registered_env import LabEnvError, default_out, find_lab_env
 from gymprecice_lab.common.requirements import require_solvers
 from gymprecice_lab.common.wrapped_env import newest_checkpoint
 from gymprecice_lab.common.wrapping import WrapError
 from gymprecice_lab.model_based.settings import TRANSITIONS_FILE
 from gymprecice_lab.training import hyperparams as hp
-from gymprecice_lab.training.kept_model import kept_summary
 from gymprecice_lab.training.loop import train
 from gymprecice_lab.training.segments import (
     command_started_at,

@@ -149,7 +149,7 @@ def objective(trial: Any, args: argparse.Namespace, env: LabEnv, out: Path) -> f
     import optuna
     import yaml
 
-    from gymprecice_lab.training.kept_model import read_kept
+    from gymprecice_lab.common.kept_model import read_kept
 
     storage, trial_id = trial.storage, trial._trial_id
     storage.set_trial_system_attr(

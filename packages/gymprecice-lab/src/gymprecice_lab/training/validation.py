@@ -31,9 +31,9 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
+from gymprecice_lab.common.kept_model import KEPT_RECORD
 from gymprecice_lab.common.registered_env import LabEnv
 from gymprecice_lab.common.wrapped_env import make_env, vecnormalize_path
-from gymprecice_lab.training.kept_model import KEPT_RECORD
 
 __all__ = ["EVAL_SEED_OFFSET", "eval_callback", "side_by_side", "validate_final"]
 

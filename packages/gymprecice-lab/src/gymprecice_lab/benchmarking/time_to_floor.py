@@ -16,7 +16,7 @@ transient, then 2 s, six shedding periods, of settled flow) keeps the scan cheap
 benchmark's table evaluates the final models over 10 s.
 
 By default (``--model kept``) the model scanned is the one the run keeps, the best of its
-validations (:mod:`gymprecice_lab.training.kept_model`), at the wall-clock of its save: the model a
+validations (:mod:`gymprecice_lab.common.kept_model`), at the wall-clock of its save: the model a
 user is left with, judged on the held-out starts that never chose it. ``--model final``
 takes the final model; ``--model checkpoints`` scans every checkpoint as above.
 
@@ -125,7 +125,7 @@ def run_started(run: Path) -> float:
 def candidates(run: Path, which: str) -> list[Checkpoint]:
     """The models of ``run`` to scan: its kept model, its final one, or its checkpoints
     (``which``: ``kept``, ``final`` or ``checkpoints``)."""
-    from gymprecice_lab.training.kept_model import KEPT_MODEL, read_kept
+    from gymprecice_lab.common.kept_model import KEPT_MODEL, read_kept
 
     if which == "checkpoints":
         return checkpoints(run)
