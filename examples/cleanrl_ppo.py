@@ -15,7 +15,8 @@ worker, and a solver that crashes or hangs ends that env's episode as truncated
 The policy's network is Stable-Baselines3's ``MlpPolicy`` layer for layer (64 x
 64, tanh, a state-independent log standard deviation), so the trained weights
 are saved as an SB3 PPO model (``<out>/model.zip``) that ``gymprecice evaluate``
-and ``gymprecice_lab.envs.load_policy`` load like one ``gymprecice train`` made.
+and ``gymprecice_lab.common.wrapped_env.load_policy`` load like one
+``gymprecice train`` made.
 
 For a real case: drop ``--double`` (the env then couples to OpenFOAM through
 preCICE), or set ``--env-id`` to your own registered env; raise

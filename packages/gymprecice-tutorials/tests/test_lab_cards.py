@@ -97,3 +97,18 @@ def test_any_import_order_registers_the_tutorials(first: str) -> None:
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.strip().splitlines()[-1] == "missing []", proc.stdout
+
+
+def test_the_tutorials_plugin_imports_no_lab_module():
+    """Loaded on every ``import gymprecice``: its cards come from core, its commands from
+    the lab's own plugin."""
+    code = (
+        "import sys, importlib; importlib.import_module('gymprecice_tutorials.plugin'); "
+        "print(sorted(m for m in sys.modules if m.startswith('gymprecice_lab')))"
+    )
+    env = {**os.environ, "GYMPRECICE_DISABLE_PLUGINS": "1"}
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"

@@ -238,7 +238,7 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs s
     out.mkdir(parents=True, exist_ok=True)
     policies = {}
     if args.policy:  # a trained policy, as the lab evaluates one (gymprecice-lab)
-        from gymprecice_lab.shipped_policies import PolicyController
+        from gymprecice_lab.policies.shipped import PolicyController
 
         # labelled by the last part of the spec: runs/heated-plate-fast/sac -> "policy sac"
         policies = {

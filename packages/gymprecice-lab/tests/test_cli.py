@@ -1,10 +1,10 @@
-"""The tutorials' sub-commands of ``gymprecice``: parsing, solver requirements, errors."""
+"""The lab's sub-commands of ``gymprecice`` on the tutorials' envs: parsing, solver
+requirements, errors."""
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import time
@@ -387,18 +387,3 @@ def test_manifest_lists_pyprecice_only_when_importable(tmp_path):
     data = json.loads(path.read_text())
     assert data["packages"]["pyprecice"] is None
     assert data["source"]["identified_by"] in ("git", "packages")
-
-
-def test_the_tutorials_plugin_imports_no_lab_module():
-    """Loaded on every ``import gymprecice``: its cards come from core, its commands from
-    the lab's own plugin."""
-    code = (
-        "import sys, importlib; importlib.import_module('gymprecice_tutorials.plugin'); "
-        "print(sorted(m for m in sys.modules if m.startswith('gymprecice_lab')))"
-    )
-    env = {**os.environ, "GYMPRECICE_DISABLE_PLUGINS": "1"}
-    proc = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env
-    )
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "[]"

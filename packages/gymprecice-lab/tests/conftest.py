@@ -1,4 +1,5 @@
-"""Fixtures shared by the tutorials' tests."""
+"""Fixtures shared by the lab's tests: a command as a user types it, one refused in this
+process, a Ray cluster."""
 
 from __future__ import annotations
 

@@ -1,0 +1,95 @@
+"""Where the benchmark's evaluations and sweep run: on a Ray cluster, or here.
+
+With ``--ray`` each evaluation and the baselines' sweep is a Ray task on any node, its
+inputs shipped and its output brought back (:mod:`gymprecice_lab.benchmarking.remote_commands`);
+without it they run in processes here, ``--workers`` at once. A cluster that is missing,
+unreachable or without a node of the CPUs one piece needs is refused before anything
+trains, so the CPUs of one env's solvers are measured here too.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+
+import gymnasium as gym
+
+from gymprecice_lab.benchmarking.checks import BenchmarkError
+from gymprecice_lab.benchmarking.remote_commands import RemoteCommand
+from gymprecice_lab.common.command_runs import run_commands
+
+__all__ = ["check_ray", "run_everywhere", "solver_cpus", "sweep_cpus"]
+
+
+def solver_cpus(env: gym.Env) -> float:
+    """CPUs the solvers of one env use (:attr:`GymPreciceConfig.solver_cpus`; 1 for an env
+    without a configuration, such as a test double)."""
+    config = getattr(env.unwrapped, "config", None)
+    return float(getattr(config, "solver_cpus", 0) or 1)
+
+
+def sweep_cpus(args: argparse.Namespace, env_cpus: float) -> float:
+    """The sweep's ``--workers`` envs at once, on one node."""
+    return max(1, args.workers) * env_cpus
+
+
+def run_everywhere(
+    commands: list[RemoteCommand], args: argparse.Namespace, one_at_a_time: bool = False
+) -> None:
+    """Run ``commands`` on the cluster with ``--ray`` (Ray tasks that ship their inputs and
+    bring their outputs back), else here, ``--workers`` at once (``one_at_a_time``: a
+    command that spreads its own work over ``--workers``)."""
+    if args.ray:
+        from gymprecice_lab.benchmarking.remote_commands import RemoteCommandError
+        from gymprecice_lab.benchmarking.remote_commands import run_commands as run_remote_commands
+
+        try:
+            run_remote_commands(commands, args.ray)
+        except RemoteCommandError as exc:
+            raise BenchmarkError(str(exc), 1) from None
+        return
+    local = [([*c.argv, *_input_options(c), "--out", str(c.out)], c.what) for c in commands]
+    run_commands(local, 1 if one_at_a_time else args.workers)
+
+
+def _input_options(command: RemoteCommand) -> list[str]:
+    return [item for option, path in command.inputs.items() for item in (option, str(path))]
+
+
+def check_ray(address: str, needs: Sequence[tuple[str, float]]) -> None:
+    """Refuse ``--ray`` before anything trains when Ray is missing, no cluster answers, or
+    no node has the CPUs one of ``needs`` (what, CPUs on one node) asks for."""
+    try:
+        import ray
+    except ImportError:
+        raise BenchmarkError(
+            "--ray needs Ray on this machine and every node: pip install "
+            "'gymprecice-core[ray]' (see docs/cluster.md)"
+        ) from None
+    host, _, port = address.rpartition(":")
+    try:
+        if host and port.isdigit():  # a head's address: ray.init would retry it for minutes
+            import socket
+
+            socket.create_connection((host, int(port)), timeout=5).close()
+        ray.init(address=address, log_to_driver=False)
+    except (OSError, RuntimeError, ValueError) as exc:  # ConnectionError is an OSError
+        raise BenchmarkError(
+            f"--ray {address}: no Ray cluster answers there "
+            f"({getattr(exc, 'strerror', None) or exc}); start one (ray start --head, see "
+            "docs/cluster.md) or pass its head's address"
+        ) from None
+    else:
+        from gymprecice_lab.benchmarking.remote_commands import (
+            RemoteCommandError,
+            check_fits,
+            largest_node_cpus,
+        )
+
+        try:
+            check_fits(needs, largest_node_cpus())
+        except RemoteCommandError as exc:
+            raise BenchmarkError(f"--ray {address}: {exc}") from None
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()

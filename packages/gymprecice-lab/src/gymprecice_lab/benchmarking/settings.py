@@ -1,0 +1,112 @@
+"""``benchmark.json``: the settings that decide a benchmark's numbers, locked on disk.
+
+A benchmark is resumed by running the same command again (a seed already trained is
+kept), so a rerun with other settings would mix two benchmarks in one table. The
+settings are written before anything runs and compared on every resume: a difference
+is refused (``--fresh`` starts over), except an algorithm added to the list, which
+trains alone beside the finished ones. A ``benchmark.json`` written before a setting
+existed is read with the value it ran with.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+from gymprecice_lab.benchmarking.checks import BenchmarkError
+from gymprecice_lab.common.registered_env import LabEnv
+
+__all__ = ["SETTINGS_NAME", "lock_settings", "settings_of"]
+
+SETTINGS_NAME = "benchmark.json"
+
+
+def settings_of(args: argparse.Namespace, env: LabEnv, algos: list[str], extra: dict) -> dict:
+    """Everything that decides the benchmark's numbers (compared on a resume)."""
+    return {
+        "env": env.name,
+        "env_id": env.env_id,
+        "algos": algos,
+        "seeds": list(range(args.seeds)),
+        "timesteps": args.timesteps,
+        "n_envs": args.n_envs,
+        "train_args": extra,
+        "episode_time": args.episode_time,
+        "eval_time": args.eval_time,
+        "env_kwargs": args.env_kwargs or {},
+        "double": bool(args.double),
+        "baselines": None
+        if args.no_baselines
+        else {
+            "constants": args.constants,
+            "amplitudes": args.amplitudes,
+            "frequencies": args.frequencies,
+            "centre": args.centre,
+            "feedback_gains": args.feedback_gains,
+            "feedback_delays": args.feedback_delays,
+            "feedback_signal": args.feedback_signal,
+            # only where the env has a law: a benchmark.json written before resumes
+            **({"feedback_grid": args.feedback_grid} if env.feedback_law else {}),
+        },
+        "bootstrap_reps": args.bootstrap_reps,
+    }
+
+
+def lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
+    """Write ``benchmark.json``, or refuse a rerun whose settings differ from it."""
+    path = out / SETTINGS_NAME
+    if fresh and out.exists():
+        for name in ("train", "eval", "baselines"):
+            shutil.rmtree(out / name, ignore_errors=True)
+        path.unlink(missing_ok=True)
+    if path.is_file():
+        original = _with_defaults(json.loads(path.read_text()))
+        saved = _with_added_algorithms(original, settings)
+        changed = [
+            f"{key} is {json.dumps(settings.get(key))} now but {json.dumps(saved.get(key))} "
+            f"in the benchmark being resumed"
+            for key in sorted(set(saved) | set(settings))
+            if json.dumps(saved.get(key), sort_keys=True)
+            != json.dumps(settings.get(key), sort_keys=True)
+        ]
+        if changed:
+            raise BenchmarkError(
+                f"cannot resume {out} with other settings: {'; '.join(changed)}. Rerun with "
+                f"the settings in {path}, choose another --out, or add --fresh to start over"
+            )
+        if saved is not original:
+            added = [a for a in settings["algos"] if a not in original["algos"]]
+            print(
+                f"gymprecice benchmark: adding {', '.join(a.upper() for a in added)}; what "
+                f"{', '.join(a.upper() for a in original['algos'])} finished is kept",
+                flush=True,
+            )
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")  # a kill mid-write keeps the settings whole
+    tmp.write_text(json.dumps(settings, indent=2) + "\n")
+    os.replace(tmp, path)
+
+
+def _with_defaults(saved: dict[str, Any]) -> dict[str, Any]:
+    """``saved`` with the settings that a benchmark written before they existed ran with."""
+    baselines = saved.get("baselines")
+    if isinstance(baselines, dict) and "centre" not in baselines:
+        saved = {**saved, "baselines": {**baselines, "centre": 0.5}}
+    return saved
+
+
+def _with_added_algorithms(saved: dict[str, Any], settings: dict[str, Any]) -> dict[str, Any]:
+    """``saved`` as if it had named the algorithms that ``settings`` adds, with their
+    training flags: adding an algorithm to a benchmark keeps every finished seed,
+    evaluation and baseline of the others, whose settings must still match."""
+    algos, old = settings.get("algos") or [], saved.get("algos") or []
+    added = [a for a in algos if a not in old]
+    if not added or algos[: len(old)] != old:
+        return saved
+    train_args = {**saved.get("train_args", {})}
+    train_args.update({a: settings.get("train_args", {}).get(a) for a in added})
+    return {**saved, "algos": algos, "train_args": train_args}

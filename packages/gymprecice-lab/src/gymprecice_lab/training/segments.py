@@ -1,0 +1,105 @@
+"""``gymprecice train``'s manifest: one record per segment, the first run and each resume.
+
+A run resumed after preemption is several processes; ``<out>/manifest.json`` keeps each
+one's command line, start, settings, seeds and result (``segments``), so the time it took
+(``time-to-floor``, ``ship-policy``) and what made it can be read back. The record is
+written when a segment starts (its result ``None``) and again when it ends; a segment
+starts when the user typed the command (:func:`command_started_at`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from gymprecice_lab.common.manifest import read_manifest, write_manifest
+from gymprecice_lab.common.registered_env import LabEnv
+
+__all__ = ["command_started_at", "previous_segments", "record_segment", "run_settings"]
+
+
+def command_started_at() -> float:
+    """When the command started (epoch seconds): now, or the typed command's start that a
+    wrapper which sets up first passes in ``GYMPRECICE_STARTED_AT`` (scripts/train.sh),
+    so that "how long did it take" counts from what the user typed."""
+    given = os.environ.get("GYMPRECICE_STARTED_AT", "")
+    try:
+        started = float(given)
+    except ValueError:
+        return time.time()
+    return started if 0 < started <= time.time() else time.time()
+
+
+def run_settings(
+    args: argparse.Namespace,
+    env: LabEnv,
+    used: dict[str, Any],
+    adjusted: list[str],
+    kwargs: dict[str, Any],
+) -> dict[str, Any]:
+    """What the manifest records of the run's settings."""
+    return {
+        "n_envs": args.n_envs,
+        "timesteps": args.timesteps,
+        "checkpoint_every": args.checkpoint_every,
+        "keep_checkpoints": args.keep_checkpoints,
+        "eval_freq": args.eval_freq,
+        "n_eval_episodes": args.n_eval_episodes,
+        "validation": not getattr(args, "no_validation", False),
+        "fresh": args.fresh,
+        "vec_env": args.vec_env,
+        "device": args.device,
+        "double": args.double,
+        "hyperparams_file": str(args.hyperparams) if args.hyperparams else None,
+        "hyperparams": used,
+        "adjusted": adjusted,
+        "env_id": env.env_id,
+        "env_kwargs": kwargs,
+    }
+
+
+def record_segment(
+    out: Path,
+    settings: dict[str, Any],
+    seeds: dict[str, Any],
+    segments: list[dict[str, Any]],
+    case_dir: Path | None,
+    solvers: Any,
+    started_at: float,
+    result: Mapping[str, Any] | None,
+) -> None:
+    """Write the manifest: the earlier segments and this one, with its ``result`` (None
+    while it runs)."""
+    segment = {
+        "argv": list(sys.argv),
+        "started_at": started_at,
+        "settings": settings,
+        "seeds": seeds,
+        "result": result,
+    }
+    write_manifest(
+        out,
+        command="train",
+        case_dir=case_dir,
+        seeds=seeds,
+        settings=settings,
+        solvers=solvers,
+        extra={"result": result, "segments": [*segments, segment]},
+    )
+
+
+def previous_segments(out: Path) -> list[dict[str, Any]]:
+    """The manifest records of the segments before this one (a resume keeps them all)."""
+    try:
+        manifest = read_manifest(out)
+    except (OSError, ValueError):
+        return []
+    if "segments" in manifest:
+        return list(manifest["segments"])
+    keys = ("argv", "settings", "seeds", "result")
+    return [{k: manifest.get(k) for k in keys}]

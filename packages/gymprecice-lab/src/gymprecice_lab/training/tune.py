@@ -1,0 +1,509 @@
+"""``gymprecice tune ENV``: hyperparameter search, as RL Zoo does it, for any registered env.
+
+Optuna's TPE sampler proposes a trial's hyperparameters (:mod:`gymprecice_lab.training.tune_spaces`);
+the trial is an ordinary ``gymprecice train`` run (its own process, its own directory
+``<out>/trials/<n>``), whose validations (:mod:`gymprecice_lab.training.validation`) are
+reported to Optuna as they are written, so that the median pruner stops a trial whose
+validation score lags the others' at the same step. A trial's score is its kept model's:
+the best mean validation return. Held-out starts are never read.
+
+What a long search on a shared machine or a cluster needs, and how it is met:
+
+* **killed at any point, resumed by the same command**: the study lives in SQLite in
+  the output directory (``--storage URL``: any Optuna storage, e.g. PostgreSQL for trials
+  on several machines); a trial left running by a killed search is failed and queued
+  again with its hyperparameters, and its training resumes from its last checkpoint, so
+  no finished trial or checkpoint is lost. The training process gets SIGTERM when the
+  search dies (it saves a checkpoint), whatever killed the search;
+* **a trial whose solver diverges or crashes** is pruned with its reason recorded
+  (``optuna`` user attribute ``failure``), and the study goes on;
+* **trials side by side**: ``--n-jobs N`` runs N worker processes on the one study;
+* the best hyperparameters as a file that ``train --hyperparams`` reads
+  (``best_hyperparams.yml``), the study's history and the parameters' importance as
+  figures (Optuna's own plots), and a progress bar.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, default_out, find_lab_env
+from gymprecice_lab.training.tune_spaces import sample, space_names
+
+__all__ = ["TuneError", "objective", "open_study", "tune_command"]
+
+#: seconds between a running trial's heartbeats; a trial silent for GRACE_S is stale
+HEARTBEAT_S = 20
+GRACE_S = 60
+#: how often a running trial's validations are read
+POLL_S = 2.0
+#: the study's attributes that a resumed search must match
+STUDY_KEYS = ("env_id", "algo", "timesteps", "n_envs", "double")
+
+
+class TuneError(Exception):
+    """Bad input or a study that cannot be used: one line for the user."""
+
+
+# -- the study -------------------------------------------------------------------------------
+
+
+def open_study(storage_url: str, name: str, settings: Mapping[str, Any], seed: int) -> Any:
+    """The study ``name`` in ``storage_url``, created with ``settings`` or checked against
+    them: a study of another env, algorithm or budget is refused, not mixed in."""
+    import optuna
+    from optuna.storages import RDBStorage, RetryHeartbeatStaleTrialCallback
+
+    _quiet_experimental_warnings()
+    try:
+        storage = RDBStorage(
+            storage_url,
+            heartbeat_interval=HEARTBEAT_S,
+            grace_period=GRACE_S,
+            heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(
+                max_retry=3, inherit_intermediate_values=True
+            ),
+        )
+    except Exception as exc:  # SQLAlchemy's errors for a URL it cannot open
+        raise TuneError(
+            f"--storage {storage_url}: cannot open it ({type(exc).__name__}: "
+            f"{str(exc).splitlines()[0]})"
+        ) from None
+    study = optuna.create_study(
+        study_name=name,
+        storage=storage,
+        direction="maximize",
+        sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=5),
+        pruner=optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=0),
+        load_if_exists=True,
+    )
+    recorded = {key: study.user_attrs.get(key) for key in STUDY_KEYS}
+    if all(value is None for value in recorded.values()):
+        for key in STUDY_KEYS:
+            study.set_user_attr(key, settings[key])
+    elif recorded != {key: settings[key] for key in STUDY_KEYS}:
+        differ = [k for k in STUDY_KEYS if recorded[k] != settings[k]]
+        raise TuneError(
+            f"study {name!r} in {storage_url} was made for "
+            + ", ".join(f"{k}={recorded[k]!r}" for k in differ)
+            + ", not "
+            + ", ".join(f"{k}={settings[k]!r}" for k in differ)
+            + "; give another --study-name or --out"
+        )
+    return study
+
+
+def _quiet_experimental_warnings() -> None:
+    """Optuna marks its heartbeat, retry and matplotlib plots experimental; a user can do
+    nothing about that, so the warnings are not shown."""
+    import warnings
+
+    from optuna.exceptions import ExperimentalWarning
+
+    warnings.filterwarnings("ignore", category=ExperimentalWarning)
+
+
+def _retry_dead_trials(study: Any) -> None:
+    """Fail and queue again, now, the running trials of this machine whose search
+    process is gone (a killed search): the heartbeat would do it only after its grace."""
+    from optuna.storages import RetryHeartbeatStaleTrialCallback
+    from optuna.trial import TrialState
+
+    host = socket.gethostname()
+    retry = RetryHeartbeatStaleTrialCallback(max_retry=3, inherit_intermediate_values=True)
+    for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        owner = trial.system_attrs.get("gymprecice_owner") or {}
+        if owner.get("host") != host or _alive(owner.get("pid"), owner.get("started")):
+            continue
+        with contextlib.suppress(Exception):  # another process failed it first
+            if study._storage.set_trial_state_values(trial._trial_id, state=TrialState.FAIL):
+                retry(study, study._storage.get_trial(trial._trial_id))
+
+
+def _alive(pid: Any, started: Any) -> bool:
+    """Whether process ``pid`` runs and is the one that started at ``started``."""
+    from gymprecice.pidregistry import process_starttime
+
+    try:
+        return pid is not None and process_starttime(int(pid)) == started
+    except (OSError, ValueError):
+        return False
+
+
+# -- one trial -------------------------------------------------------------------------------
+
+
+def objective(trial: Any, args: argparse.Namespace, env: LabEnv, out: Path) -> float:
+    """Train one trial's hyperparameters; its kept model's mean validation return."""
+    import optuna
+    import yaml
+
+    from gymprecice_lab.common.kept_model import read_kept
+
+    storage, trial_id = trial.storage, trial._trial_id
+    storage.set_trial_system_attr(
+        trial_id,
+        "gymprecice_owner",
+        {"host": socket.gethostname(), "pid": os.getpid(), "started": _own_start()},
+    )
+    original = storage.get_trial_system_attrs(trial_id).get("failed_trial", trial.number)
+    run = out / "trials" / str(original)  # a retried trial resumes its first attempt's run
+    run.mkdir(parents=True, exist_ok=True)
+    params = sample(
+        trial, args.algo, args.timesteps, args.n_envs, _fixed(args, env), args.params or None
+    )
+    (run / "hyperparams.yml").write_text(yaml.safe_dump({env.env_id: params}, sort_keys=True))
+    trial.set_user_attr("hyperparams", params)
+    trial.set_user_attr("run", str(run))
+    argv = _train_argv(args, env, run)
+    status, reported, pruned = _watch(trial, argv, run)
+    if pruned:
+        raise optuna.TrialPruned(f"validation score lags at step {reported}")
+    kept = read_kept(run / "train")
+    if status != 0 or kept is None:
+        reason = _failure(run, status)
+        trial.set_user_attr("failure", reason)
+        print(f"gymprecice tune: trial {trial.number} pruned: {reason}", file=sys.stderr)
+        raise optuna.TrialPruned(reason)
+    trial.set_user_attr("kept_step", kept["timesteps"])
+    return float(kept["mean_return"])
+
+
+def _own_start() -> Any:
+    from gymprecice.pidregistry import process_starttime
+
+    return process_starttime(os.getpid())
+
+
+def _fixed(args: argparse.Namespace, env: LabEnv) -> dict[str, Any]:
+    """``--hyperparams``: settings every trial keeps (the search does not vary them)."""
+    if args.hyperparams is None:
+        return {}
+    from gymprecice_lab.training.hyperparams import load_hyperparams_file
+
+    return load_hyperparams_file(args.hyperparams, args.algo, (env.env_id, env.name))
+
+
+def _train_argv(args: argparse.Namespace, env: LabEnv, run: Path) -> list[str]:
+    argv = [
+        sys.executable,
+        "-m",
+        "gymprecice",
+        "train",
+        env.env_id,
+        "--algo",
+        args.algo,
+        "--hyperparams",
+        str(run / "hyperparams.yml"),
+        "--timesteps",
+        str(args.timesteps),
+        "--n-envs",
+        str(args.n_envs),
+        "--checkpoint-every",
+        str(args.validate_every),
+        "--seed",
+        str(args.seed),
+        "--no-progress-bar",
+        "--out",
+        str(run / "train"),
+    ]
+    if args.double:
+        argv.append("--double")
+    if args.episode_time is not None:
+        argv += ["--episode-time", repr(args.episode_time)]
+    if args.env_kwargs:
+        argv += ["--env-kwargs", json.dumps(args.env_kwargs)]
+    return argv
+
+
+def _watch(trial: Any, argv: list[str], run: Path) -> tuple[int, int, bool]:
+    """Run a trial's training, report each validation to Optuna as it is written, and
+    stop the training (SIGTERM: it saves) once the pruner says so.
+
+    Returns the exit status, the last step reported and whether it was pruned."""
+    import numpy as np
+
+    npz = run / "train" / "eval" / "evaluations.npz"
+    reported, pruned = -1, False
+    with (run / "train.log").open("a") as log, _child(argv, log) as child:
+        while True:
+            status = child.poll()
+            try:
+                with np.load(npz) as data:
+                    steps, results = list(data["timesteps"]), data["results"]
+            except (OSError, ValueError, KeyError, EOFError):
+                steps, results = [], None
+            for k, step in enumerate(steps):
+                if int(step) > reported:
+                    reported = int(step)
+                    trial.report(float(np.mean(results[k])), reported)
+                    if trial.should_prune() and status is None:
+                        pruned = True
+                        child.send_signal(signal.SIGTERM)
+            if status is not None:
+                return status, reported, pruned
+            time.sleep(POLL_S)
+
+
+@contextlib.contextmanager
+def _child(argv: list[str], log: Any) -> Iterator[subprocess.Popen[bytes]]:
+    """The training process: SIGTERM when this process dies whatever killed it
+    (``PR_SET_PDEATHSIG``), so that it saves a checkpoint and stops its solvers; and
+    SIGTERM, then SIGKILL, when the search stops here (an exception, Ctrl-C)."""
+    child = subprocess.Popen(
+        argv,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        preexec_fn=_die_with_parent,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},  # no buffer copied into its forks
+    )
+    try:
+        yield child
+    finally:
+        if child.poll() is None:
+            child.send_signal(signal.SIGTERM)
+            try:
+                child.wait(60)
+            except subprocess.TimeoutExpired:
+                child.kill()
+                child.wait()
+
+
+def _die_with_parent() -> None:
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG
+
+
+def _failure(run: Path, status: int) -> str:
+    """Why a trial's training gave no kept model: its exit status and last log line."""
+    try:
+        lines = [ln for ln in (run / "train.log").read_text(errors="replace").splitlines() if ln]
+    except OSError:
+        lines = []
+    last = lines[-1][:300] if lines else "no output"
+    return f"the training exited with status {status}: {last}"
+
+
+# -- the command -----------------------------------------------------------------------------
+
+
+def tune_command(args: argparse.Namespace) -> int:
+    """``gymprecice tune ENV``."""
+    try:
+        return _tune(args)
+    except (TuneError, LabEnvError) as exc:
+        print(f"gymprecice tune: {exc}", file=sys.stderr)
+        return 2
+
+
+def _tune(args: argparse.Namespace) -> int:
+    import optuna
+
+    env = find_lab_env(args.env)
+    if args.algo not in ("ppo", "sac", "td3"):
+        raise TuneError(f"--algo {args.algo}: choose ppo, sac or td3")
+    if args.params:
+        unknown = sorted(set(args.params) - set(space_names(args.algo)))
+        if unknown:
+            raise TuneError(
+                f"--params {','.join(unknown)}: {args.algo.upper()}'s search space has no "
+                f"such parameter; choose from {', '.join(space_names(args.algo))}"
+            )
+    if not args.double:
+        from gymprecice_lab.common.requirements import require_solvers
+
+        status = require_solvers(env, "tune", verbose=False)
+        if status:
+            return status
+    out = (args.out or default_out(env, "tune")).resolve()
+    storage = args.storage or f"sqlite:///{out / 'study.db'}"
+    name = args.study_name or f"{env.name}-{args.algo}"
+    settings = {
+        "env_id": env.env_id,
+        "algo": args.algo,
+        "timesteps": args.timesteps,
+        "n_envs": args.n_envs,
+        "double": bool(args.double),
+    }
+    _fixed(args, env)  # a bad --hyperparams file is refused before anything is written
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        study = open_study(storage, name, settings, args.seed)
+    except TuneError:
+        if created:
+            with contextlib.suppress(OSError):
+                (out / "study.db").unlink(missing_ok=True)
+                out.rmdir()
+        raise
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    _retry_dead_trials(study)
+    done = _counted(study)
+    todo = max(0, args.trials - done)
+    print(
+        f"gymprecice tune: {env.name}, {args.algo.upper()}, study {name!r} in {storage}: "
+        f"{done} trial(s) finished, {todo} to run ({args.n_jobs} at once), each "
+        f"{args.timesteps:,} steps on {args.n_envs} env(s) validated every "
+        f"{args.validate_every:,}; trials in {out / 'trials'}",
+        flush=True,
+    )
+    if todo:
+        if args.n_jobs > 1:
+            _optimize_in_workers(args, storage, name, todo)
+        else:
+            _optimize(study, args, env, out, todo)
+    return _report(study, args, env, out, name)
+
+
+def _counted(study: Any) -> int:
+    """Trials that count toward ``--trials``: finished, pruned or failed for good."""
+    from optuna.trial import TrialState
+
+    return len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED)))
+
+
+def _optimize(study: Any, args: argparse.Namespace, env: LabEnv, out: Path, n: int) -> None:
+    from optuna.trial import TrialState
+
+    def stop_when_counted(study: Any, trial: Any) -> None:
+        if _counted(study) >= args.trials:
+            study.stop()
+
+    study.optimize(
+        lambda trial: objective(trial, args, env, out),
+        n_trials=n + len(study.get_trials(deepcopy=False, states=(TrialState.WAITING,))),
+        callbacks=[stop_when_counted],
+        catch=(),
+        show_progress_bar=not args.no_progress_bar,
+        gc_after_trial=True,
+    )
+
+
+def _optimize_in_workers(args: argparse.Namespace, storage: str, name: str, n: int) -> None:
+    """``--n-jobs`` worker processes, each running trials of the one study (each the same
+    command with ``--n-jobs 1`` and its share of the trials)."""
+    argv = [a for a in sys.argv[1:]]
+    workers = []
+    for k in range(args.n_jobs):
+        share = n // args.n_jobs + (1 if k < n % args.n_jobs else 0)
+        if not share:
+            continue
+        cmd = [
+            sys.executable,
+            "-m",
+            "gymprecice",
+            *_without(argv, ("--n-jobs", "--trials", "--storage")),
+            "--n-jobs",
+            "1",
+            "--trials",
+            str(args.trials),
+            "--storage",
+            storage,
+            "--study-name",
+            name,
+            "--no-progress-bar",
+        ]
+        workers.append(subprocess.Popen(cmd, preexec_fn=_die_with_parent))
+    for worker in workers:
+        worker.wait()
+
+
+def _without(argv: list[str], flags: tuple[str, ...]) -> list[str]:
+    """``argv`` without ``flags`` and their values (``--flag V`` or ``--flag=V``)."""
+    out, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+            continue
+        if arg in flags:
+            skip = True
+            continue
+        if any(arg.startswith(f"{flag}=") for flag in flags):
+            continue
+        out.append(arg)
+    return out
+
+
+def _report(study: Any, args: argparse.Namespace, env: LabEnv, out: Path, name: str) -> int:
+    """Write the best hyperparameters and the figures; say the best trial."""
+    import yaml
+    from optuna.trial import TrialState
+
+    complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    pruned = study.get_trials(deepcopy=False, states=(TrialState.PRUNED,))
+    failed = [t for t in pruned if t.user_attrs.get("failure")]
+    if not complete:
+        print(
+            f"gymprecice tune: no trial finished yet ({len(pruned)} pruned, {len(failed)} of "
+            "them failed: see `failure` in the study); run the same command to go on",
+            file=sys.stderr,
+        )
+        return 1
+    best = study.best_trial
+    params = dict(best.user_attrs.get("hyperparams") or {})
+    best_file = out / "best_hyperparams.yml"
+    best_file.write_text(
+        f"# gymprecice tune {env.name}: study {name!r}, trial {best.number} of "
+        f"{len(complete) + len(pruned)}, mean validation return {best.value:.6g}\n"
+        + yaml.safe_dump({env.env_id: params}, sort_keys=True)
+    )
+    summary = {
+        "env_id": env.env_id,
+        "algo": args.algo,
+        "study": name,
+        "best_trial": best.number,
+        "best_value": best.value,
+        "best_hyperparams": params,
+        "trials": {"complete": len(complete), "pruned": len(pruned), "failed": len(failed)},
+        "failures": {str(t.number): t.user_attrs["failure"] for t in failed},
+    }
+    (out / "tune.json").write_text(json.dumps(summary, indent=2) + "\n")
+    figures = _figures(study, out)
+    print(
+        f"gymprecice tune: best trial {best.number}: mean validation return {best.value:.4g} "
+        f"({len(complete)} finished, {len(pruned)} pruned, {len(failed)} of them failed); "
+        f"wrote {best_file} (`gymprecice train {env.name} --algo {args.algo} "
+        f"--hyperparams {best_file}`), tune.json{figures}"
+    )
+    return 0
+
+
+def _figures(study: Any, out: Path) -> str:
+    """Optuna's history and parameter-importance plots, as PNGs; what was written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from optuna.importance import PedAnovaImportanceEvaluator
+    from optuna.visualization import matplotlib as plots
+
+    written = []
+    for filename, draw in (
+        ("history.png", lambda: plots.plot_optimization_history(study)),
+        (
+            "importance.png",
+            lambda: plots.plot_param_importances(study, evaluator=PedAnovaImportanceEvaluator()),
+        ),
+    ):
+        try:
+            ax = draw()
+        except (ValueError, RuntimeError):
+            continue  # too few finished trials for this plot yet
+        ax.figure.tight_layout()
+        ax.figure.savefig(out / filename, dpi=120)
+        plt.close(ax.figure)
+        written.append(filename)
+    return "".join(f", {name}" for name in written)
