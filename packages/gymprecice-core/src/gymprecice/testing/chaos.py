@@ -59,8 +59,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.core import Adapter
-from gymprecice.processes import PidRegistry
+from gymprecice.env.core import Adapter
+from gymprecice.env.processes import PidRegistry
 from gymprecice.testing import chaos_solver
 from gymprecice.testing.chaos_solver import (
     COEFFICIENTS,

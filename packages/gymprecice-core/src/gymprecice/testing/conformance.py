@@ -60,21 +60,22 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.optional import optional_import_error
+from gymprecice.tools.optional import optional_import_error
 
 try:
     import pytest
 except ModuleNotFoundError as exc:  # say which extra brings it: gymprecice-core[testing]
     raise optional_import_error(exc, __name__) from None
 
-from gymprecice import hookspecs, lifecycle
-from gymprecice.plugins import (
+from gymprecice.env import lifecycle
+from gymprecice.plugin import hookspecs
+from gymprecice.plugin.manager import (
     DISABLE_ENV_VAR,
     ENTRY_POINT_GROUP,
     GymPrecicePluginManager,
     PluginWarning,
 )
-from gymprecice.solver import DoctorCheck, InterfaceGeometry, SolverContext
+from gymprecice.plugin.solver import DoctorCheck, InterfaceGeometry, SolverContext
 from gymprecice.testing.contexts import make_solver_context, validation_context
 
 __all__ = [

@@ -33,9 +33,9 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.fields import Field, grid_points
-from gymprecice.precice_xml import PreciceConfig
-from gymprecice.solver import InterfaceGeometry
+from gymprecice.plugin.fields import Field, grid_points
+from gymprecice.plugin.precice_xml import PreciceConfig
+from gymprecice.plugin.solver import InterfaceGeometry
 
 __all__ = [
     "CYLINDER_CENTER",

@@ -76,7 +76,7 @@ __all__ = [
 
 #: names imported on first use: they pull in Stable-Baselines3 or Ray
 _LAZY = {
-    "ResilientSubprocVecEnv": "gymprecice.sb3",
+    "ResilientSubprocVecEnv": "gymprecice.learners.sb3",
     "RayBackend": "gymprecice.vector.ray",
 }
 

@@ -11,7 +11,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
-from gymprecice.telemetry import Telemetry
+from gymprecice.learners.telemetry import Telemetry
 from gymprecice.vector.failures import EnvFailure
 from gymprecice.vector.pool import EnvPool
 

@@ -44,8 +44,8 @@ import cloudpickle
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.processes import describe_returncode
-from gymprecice.telemetry import Telemetry
+from gymprecice.env.processes import describe_returncode
+from gymprecice.learners.telemetry import Telemetry
 from gymprecice.vector.contract import TIMEOUT, Backend, Host, Reply
 from gymprecice.vector.failures import (
     DEFAULT_FATAL_ERRORS,
