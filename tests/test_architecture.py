@@ -286,6 +286,7 @@ MOVED = {
             "lifecycle",
             "owner_watchdog",
             "pidregistry",
+            "precice_library",
             "processes",
             "rendering",
             "returned_values",
@@ -305,7 +306,6 @@ MOVED = {
             "install_command",
             "optional",
             "precice_install",
-            "precice_library",
             "prerequisites",
             "sketch_command",
             "sketch_drawing",
@@ -313,7 +313,8 @@ MOVED = {
         ],
         "tools",
     ),
-    **dict.fromkeys(["rllib", "robustness", "sb3", "telemetry"], "learners"),
+    **dict.fromkeys(["rllib", "robustness", "sb3"], "learners"),
+    "telemetry": "vector.telemetry",
 }
 
 

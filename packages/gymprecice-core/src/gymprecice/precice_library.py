@@ -1,7 +1,7 @@
-"""Old path of :mod:`gymprecice.tools.precice_library` (an alias: the same module object)."""
+"""Old path of :mod:`gymprecice.env.precice_library` (an alias: the same module object)."""
 
 import sys
 
-from gymprecice.tools import precice_library as _module
+from gymprecice.env import precice_library as _module
 
 sys.modules[__name__] = _module

@@ -1,7 +1,7 @@
-"""Old path of :mod:`gymprecice.learners.telemetry` (an alias: the same module object)."""
+"""Old path of :mod:`gymprecice.vector.telemetry` (an alias: the same module object)."""
 
 import sys
 
-from gymprecice.learners import telemetry as _module
+from gymprecice.vector import telemetry as _module
 
 sys.modules[__name__] = _module

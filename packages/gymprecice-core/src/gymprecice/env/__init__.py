@@ -6,7 +6,9 @@ the episode (:mod:`~gymprecice.env.episode`: reset, step, close), the coupled ru
 episode), the coupling session with the worker process (:mod:`~gymprecice.env.coupling`),
 the solver processes and their records (:mod:`~gymprecice.env.processes`,
 :mod:`~gymprecice.env.pidregistry`, :mod:`~gymprecice.env.owner_watchdog`), the step's
-guards, actions, values and frames, the run directory and the configuration.
+guards (with :mod:`~gymprecice.env.precice_library`: which preCICE a solver loaded),
+actions, values and frames, the run directory and the configuration, and core's own
+plugin for the kinds ``script`` and ``command`` (:mod:`~gymprecice.env.default_plugin`).
 
 This package's ``__init__`` imports nothing: a module of it is imported by name.
 """

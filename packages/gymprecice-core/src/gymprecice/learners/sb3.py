@@ -47,8 +47,8 @@ try:
 except ModuleNotFoundError as exc:  # say which extra brings it: gymprecice-core[sb3]
     raise optional_import_error(exc, "gymprecice.sb3") from None
 
-from gymprecice.learners.telemetry import Telemetry
 from gymprecice.vector import EnvFailure, EnvPool
+from gymprecice.vector.telemetry import Telemetry
 
 __all__ = ["ResilientSubprocVecEnv", "TelemetryCallback"]
 

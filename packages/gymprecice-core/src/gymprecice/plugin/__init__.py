@@ -19,7 +19,7 @@ and it imports from here, and from nowhere else in gymprecice::
         return {KIND: "My preCICE-enabled solver"}
 
     @hookimpl
-    @for_kind(KIND)            # another kind's solver: None, the next plugin answers
+    @for_kind(KIND)  # another kind's solver: None, the next plugin answers
     def gymprecice_reset_case(solver):
         return True
 

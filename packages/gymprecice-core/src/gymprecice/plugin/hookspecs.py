@@ -4,22 +4,20 @@ A plugin is any module (usually found through the ``gymprecice`` entry-point gro
 functions marked ``@hookimpl`` whose names match the specs below::
 
     # my_solver_plugin.py
-    from gymprecice.plugin.hookspecs import hookimpl, LaunchSpec
+    from gymprecice.plugin import LaunchSpec, for_kind, hookimpl
 
     @hookimpl
     def gymprecice_solver_kinds():
         return {"mysolver": "My preCICE-enabled solver"}
 
     @hookimpl
+    @for_kind("mysolver")    # not mine: None, let another plugin answer
     def gymprecice_reset_case(solver):
-        if solver.kind != "mysolver":
-            return None          # not mine: let another plugin answer
         return True
 
     @hookimpl
+    @for_kind("mysolver")
     def gymprecice_launch_solver(solver):
-        if solver.kind != "mysolver":
-            return None
         return LaunchSpec(argv=["mysolver", "case.cfg"], cwd=solver.run_dir)
 
 and, in its ``pyproject.toml``::
@@ -29,7 +27,8 @@ and, in its ``pyproject.toml``::
 
 A plugin needs ``gymprecice_solver_kinds``, ``gymprecice_reset_case`` and
 ``gymprecice_launch_solver``; every other hook is optional and has a default, stated in
-its spec. Everything else a plugin needs comes from this module too: the value types
+its spec. Everything else a plugin needs comes from :mod:`gymprecice.plugin` (this
+module re-exports a part of it too, for plugins written before it): the value types
 (``LaunchSpec``, ``InterfaceGeometry``, ``SolverContext``, ``DoctorCheck``,
 ``InstallStep``, the reader protocols), the errors to raise (``CaseError``,
 ``ConfigError``), the option checks (``refuse_unknown_options``,
@@ -38,8 +37,9 @@ its spec. Everything else a plugin needs comes from this module too: the value t
 split of a reader's rows at a step's end (``rows_through``; :mod:`gymprecice.readers`). Core never names a solver; plugins never touch preCICE: core owns the coupling
 and every process, plugins only prepare files and describe what to run.
 
-**What ``None`` means.** Every hook asked about one solver starts with ``if solver.kind
-!= KIND: return None``, and for every one of them ``None`` means exactly one thing: *this
+**What ``None`` means.** Every hook asked about one solver stands under
+``@for_kind(KIND)`` (:func:`gymprecice.plugin.for_kind`), which returns ``None`` for
+another kind's solver, and for every one of them ``None`` means exactly one thing: *this
 plugin gives no answer for this solver*. Core then asks the next plugin, and when none
 answers applies the hook's default (its spec says which). Whether the plugin stayed silent
 because the kind is not its own or because it has nothing to add makes no difference to

@@ -5,8 +5,8 @@
 beside it (:mod:`~gymprecice.tools.doctor`, :mod:`~gymprecice.tools.install_command`,
 :mod:`~gymprecice.tools.clean_command`, :mod:`~gymprecice.tools.sketch_command`), as does
 what they drive: the coupling stack's build (:mod:`~gymprecice.tools.stack`,
-:mod:`~gymprecice.tools.precice_install`, :mod:`~gymprecice.tools.prerequisites`), the
-preCICE library checks (:mod:`~gymprecice.tools.precice_library`), case sketches
+:mod:`~gymprecice.tools.precice_install`, :mod:`~gymprecice.tools.prerequisites`), case
+sketches
 (:mod:`~gymprecice.tools.case_sketch`, :mod:`~gymprecice.tools.sketch_drawing`), the
 installed distributions (:mod:`~gymprecice.tools.distribution`) and the one-line advice
 for a missing optional dependency (:mod:`~gymprecice.tools.optional`).

@@ -45,7 +45,6 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.env.processes import describe_returncode
-from gymprecice.learners.telemetry import Telemetry
 from gymprecice.vector.contract import TIMEOUT, Backend, Host, Reply
 from gymprecice.vector.failures import (
     DEFAULT_FATAL_ERRORS,
@@ -55,6 +54,7 @@ from gymprecice.vector.failures import (
     FailureBudgetExceededError,
     unpickle_exception,
 )
+from gymprecice.vector.telemetry import Telemetry
 
 log = logging.getLogger("gymprecice.vector")
 
