@@ -176,6 +176,20 @@ def _inside(path: Path, root: Path) -> bool:
     return True
 
 
+def _names_module(name: str, module: str, plugin: Any) -> bool:
+    """Whether an entry point's module ``name`` is the plugin's: its own name, or another
+    name of the same package that imports as the plugin (an alias, as core's
+    ``gymprecice.default_plugin`` is of ``gymprecice.env.default_plugin``)."""
+    if name == module:
+        return True
+    if name.split(".")[0] != module.split(".")[0]:
+        return False
+    try:
+        return importlib.import_module(name) is plugin
+    except ImportError:
+        return False
+
+
 class SolverPluginConformance:
     """Base class of a plugin's conformance tests (not collected itself: no ``Test`` prefix).
 
@@ -337,7 +351,7 @@ class SolverPluginConformance:
         values = [
             ep.value
             for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
-            if ep.value.split(":", 1)[0].strip() == module
+            if _names_module(ep.value.split(":", 1)[0].strip(), module, plugin)
         ]
         _require(
             bool(values),

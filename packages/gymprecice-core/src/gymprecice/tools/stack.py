@@ -42,7 +42,6 @@ import sys
 import tarfile
 import threading
 import time
-import urllib.request
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
@@ -146,6 +145,10 @@ class SourceArchive:
                 f"{self.filename}: not found ({where}) and downloading is off; put the release "
                 f"archive in a directory and set {SOURCES_ENV} to it"
             )
+        # Imported here: every importer of gymprecice.plugin (a solver partner too) loads
+        # this module, and only a download needs urllib's HTTP stack.
+        import urllib.request
+
         log(f"downloading {self.url}")
         cached.parent.mkdir(parents=True, exist_ok=True)
         partial = cached.with_name(cached.name + ".part")
