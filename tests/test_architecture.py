@@ -158,3 +158,172 @@ def test_the_checks_can_fail(tmp_path):
     assert sorted(_circles(arrows)) == [["pkg.a", "pkg.b"], ["pkg.e", "pkg.f"]]
     assert private == ["src/pkg/c.py:1 imports pkg.b._hidden"]
     assert arrows["pkg.d"] == {"pkg.c"}
+
+
+# -- the plugin surface: a solver plugin imports gymprecice.plugin and nothing else of core --
+
+#: The one part of core a solver plugin's source may import (with its modules).
+PLUGIN_SURFACE = "gymprecice.plugin"
+
+
+def _entry_point_modules(pyproject: Path) -> list[str]:
+    import tomllib
+
+    project = tomllib.loads(pyproject.read_text()).get("project", {})
+    group = project.get("entry-points", {}).get("gymprecice", {})
+    return [value.split(":", 1)[0].strip() for value in group.values()]
+
+
+def _solver_plugin_sources(packages: Path) -> dict[str, Path]:
+    """Distribution -> its ``src``, for each whose ``gymprecice`` entry point names a module
+    that answers ``gymprecice_solver_kinds``: a solver plugin (core itself excepted)."""
+    found = {}
+    for pyproject in sorted(packages.glob("*/pyproject.toml")):
+        src = pyproject.parent / "src"
+        if pyproject.parent.name == "gymprecice-core" or not src.is_dir():
+            continue
+        for module in _entry_point_modules(pyproject):
+            path = src.joinpath(*module.split(".")).with_suffix(".py")
+            if not path.is_file():
+                path = src.joinpath(*module.split("."), "__init__.py")
+            tree = ast.parse(path.read_text(), str(path))
+            if any(
+                isinstance(node, ast.FunctionDef) and node.name == "gymprecice_solver_kinds"
+                for node in tree.body
+            ):
+                found[pyproject.parent.name] = src
+    return found
+
+
+def _core_imports_beyond_the_surface(src: Path, root: Path = ROOT) -> list[str]:
+    """Every import, anywhere in a module under ``src``, of a ``gymprecice`` module other
+    than :data:`PLUGIN_SURFACE` and its modules (said with file and line)."""
+    found = []
+    for path in sorted(src.rglob("*.py")):
+        for node in _imports(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif node.level == 0 and node.module == "gymprecice":
+                names = [f"gymprecice.{alias.name}" for alias in node.names]
+            elif node.level == 0 and node.module:
+                names = [node.module]
+            else:
+                continue
+            for name in names:
+                if name.split(".")[0] != "gymprecice":
+                    continue
+                if name == PLUGIN_SURFACE or name.startswith(PLUGIN_SURFACE + "."):
+                    continue
+                found.append(f"{path.relative_to(root)}:{node.lineno} imports {name}")
+    return found
+
+
+def test_solver_plugins_import_only_the_plugin_surface():
+    """openfoam, deal.II and FEniCS reach core through ``gymprecice.plugin`` alone, so that
+    core's runtime, tools and learners may change without touching a plugin."""
+    sources = _solver_plugin_sources(ROOT / "packages")
+    assert set(sources) == {"gymprecice-openfoam", "gymprecice-dealii", "gymprecice-fenics"}
+    beyond = [line for src in sources.values() for line in _core_imports_beyond_the_surface(src)]
+    assert not beyond, f"solver plugins must import core only as {PLUGIN_SURFACE}: " + (
+        "; ".join(beyond)
+    )
+
+
+def test_the_plugin_surface_check_can_fail(tmp_path):
+    src = tmp_path / "src" / "my_plugin"
+    src.mkdir(parents=True)
+    (src / "plugin.py").write_text(
+        "import gymprecice\n"
+        "from gymprecice import plugin\n"
+        "from gymprecice.plugin import hookimpl\n"
+        "from gymprecice.plugin.fields import Field\n"
+        "from gymprecice import processes\n"
+        "def hook():\n    from gymprecice.env.core import Adapter\n"
+    )
+    assert _core_imports_beyond_the_surface(tmp_path / "src", tmp_path) == [
+        "src/my_plugin/plugin.py:1 imports gymprecice",
+        "src/my_plugin/plugin.py:5 imports gymprecice.processes",
+        "src/my_plugin/plugin.py:7 imports gymprecice.env.core",
+    ]
+
+
+# -- the old module paths: each one is its new home, the same module object ----------------
+
+#: Core's flat modules before the wings, each with its home now (docs/architecture.md).
+MOVED = {
+    **dict.fromkeys(
+        [
+            "card",
+            "divergence",
+            "errors",
+            "fields",
+            "hookspecs",
+            "logscan",
+            "options",
+            "precice_xml",
+            "readers",
+            "registration",
+            "sketch",
+            "solver",
+            "watchpoints",
+        ],
+        "plugin",
+    ),
+    "plugins": "plugin.manager",
+    **dict.fromkeys(
+        [
+            "action_shaping",
+            "actions",
+            "config",
+            "core",
+            "coupled_run",
+            "coupling",
+            "default_plugin",
+            "episode",
+            "exit_cleanup",
+            "frames",
+            "guards",
+            "lifecycle",
+            "owner_watchdog",
+            "pidregistry",
+            "precice_library",
+            "processes",
+            "rendering",
+            "returned_values",
+            "rundir",
+            "timed_reader",
+            "values",
+            "vertices",
+        ],
+        "env",
+    ),
+    **dict.fromkeys(
+        [
+            "case_sketch",
+            "clean_command",
+            "cli",
+            "distribution",
+            "install_command",
+            "optional",
+            "precice_install",
+            "prerequisites",
+            "sketch_command",
+            "sketch_drawing",
+            "stack",
+        ],
+        "tools",
+    ),
+    **dict.fromkeys(["rllib", "robustness", "sb3"], "learners"),
+    "telemetry": "vector.telemetry",
+}
+
+
+def test_every_old_module_path_is_its_new_home():
+    import importlib
+
+    core = ROOT / "packages" / "gymprecice-core" / "src" / "gymprecice"
+    for old, home in MOVED.items():
+        new = home if "." in home else f"{home}.{old}"
+        assert (core / f"{old}.py").is_file() and (core / f"{new.replace('.', '/')}.py").is_file()
+        module = importlib.import_module(f"gymprecice.{new}")
+        assert importlib.import_module(f"gymprecice.{old}") is module, old

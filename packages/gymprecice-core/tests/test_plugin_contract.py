@@ -16,7 +16,7 @@ import pytest
 from gymprecice.core import Adapter
 from gymprecice.errors import SolverCrashedError
 from gymprecice.testing import case_config
-from gymprecice.testing.flows import fake_cylinder_geometry
+from gymprecice.testing.flows import place_jets
 
 DOUBLE = "gymprecice.testing.fake_precice"
 
@@ -26,9 +26,7 @@ class CylinderEnv(Adapter):
 
     def __init__(self, options, idx=None, **kwargs):
         super().__init__(options, idx, **kwargs)
-        geometry = fake_cylinder_geometry()
-        for name in ("jet1", "jet2"):
-            self.set_interface_vertices(name, geometry[name].coordinates)
+        place_jets(self)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(32,), dtype=np.float32)
 

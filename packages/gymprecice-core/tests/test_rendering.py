@@ -22,7 +22,7 @@ from gymprecice.hookspecs import hookimpl
 from gymprecice.plugins import temporary_plugin
 from gymprecice.rendering import FrameRenderer, hole_mask
 from gymprecice.testing import case_config
-from gymprecice.testing.flows import fake_cylinder_geometry
+from gymprecice.testing.flows import place_jets
 
 DOUBLE = "gymprecice.testing.fake_precice"
 #: a frame that shows a field has far more pixel variance than a blank or one-colour one
@@ -34,9 +34,7 @@ class RenderingCylinderEnv(Adapter):
 
     def __init__(self, options, idx=0, **kwargs):
         super().__init__(options, idx, **kwargs)
-        geometry = fake_cylinder_geometry()
-        for name in ("jet1", "jet2"):
-            self.set_interface_vertices(name, geometry[name].coordinates)
+        place_jets(self)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(32,), dtype=np.float32)
 
@@ -328,9 +326,7 @@ def _two_jets(case: Path, tmp_path: Path, **kwargs):
 
         def __init__(self, options, idx=0, **kw):
             super().__init__(options, idx, **kw)
-            geometry = fake_cylinder_geometry()
-            for name in ("jet1", "jet2"):
-                self.set_interface_vertices(name, geometry[name].coordinates)
+            place_jets(self)
             box = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
             self.action_spaces = dict.fromkeys(self.possible_agents, box)
             self.observation_spaces = {

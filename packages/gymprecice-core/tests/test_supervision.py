@@ -36,7 +36,7 @@ from gymprecice.pidregistry import PidRegistry, kill_recorded_groups
 from gymprecice.processes import SolverProcess
 from gymprecice.solver import LaunchSpec
 from gymprecice.testing import case_config
-from gymprecice.testing.flows import fake_cylinder_geometry
+from gymprecice.testing.flows import place_jets
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
 
@@ -47,9 +47,7 @@ HERE = Path(__file__).resolve()
 class CylinderEnv(Adapter):
     def __init__(self, options, idx=None, **kwargs):
         super().__init__(options, idx, **kwargs)
-        geometry = fake_cylinder_geometry()
-        for name in ("jet1", "jet2"):
-            self.set_interface_vertices(name, geometry[name].coordinates)
+        place_jets(self)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(32,), dtype=np.float32)
         self.actions: list[float] = []

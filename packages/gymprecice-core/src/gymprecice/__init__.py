@@ -16,7 +16,7 @@ def _register_plugin_environments() -> None:
     import warnings
 
     try:
-        from gymprecice.registration import register_environments
+        from gymprecice.plugin.registration import register_environments
 
         register_environments()
     except Exception as exc:  # pragma: no cover - defensive

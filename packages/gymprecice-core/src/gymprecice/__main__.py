@@ -2,7 +2,7 @@
 
 import sys
 
-from gymprecice.cli import main
+from gymprecice.tools.cli import main
 
 if __name__ == "__main__":
     sys.exit(main())

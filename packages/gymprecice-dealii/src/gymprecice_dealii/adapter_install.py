@@ -13,12 +13,16 @@ import os
 import shutil
 from pathlib import Path
 
-from gymprecice.prerequisites import CMAKE, CXX, MAKE, Prerequisite, header
-from gymprecice.stack import (
+from gymprecice.plugin import (
+    CMAKE,
+    CXX,
+    MAKE,
     BuildContext,
     BuildError,
     InstallStep,
+    Prerequisite,
     SourceArchive,
+    header,
     stack_prefix,
 )
 

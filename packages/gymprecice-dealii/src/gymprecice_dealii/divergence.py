@@ -24,9 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.divergence import checked_positive, first_match
-from gymprecice.solver import SolverContext
-from gymprecice.watchpoints import WatchPointLog
+from gymprecice.plugin import SolverContext, WatchPointLog, checked_positive, first_match
 
 __all__ = ["DISPLACEMENT_OPTION", "detect", "displacement_limit"]
 

@@ -29,9 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.errors import ConfigError
-from gymprecice.fields import Field
-from gymprecice.solver import SolverContext
+from gymprecice.plugin import ConfigError, Field, SolverContext
 
 __all__ = ["VtkSnapshot", "read_field", "read_vtk", "render_output_interval"]
 

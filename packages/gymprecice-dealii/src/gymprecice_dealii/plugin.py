@@ -48,14 +48,19 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from gymprecice.errors import CaseError, ConfigError
-from gymprecice.fields import Field
-from gymprecice.hookspecs import InstallStep, hookimpl
-from gymprecice.solver import DoctorCheck, LaunchSpec, SolverContext
-from gymprecice.stack import stack_which
-from gymprecice.watchpoints import (
+from gymprecice.plugin import (
+    CaseError,
+    ConfigError,
+    DoctorCheck,
+    Field,
+    InstallStep,
+    LaunchSpec,
+    SolverContext,
     WatchPointLog,
+    for_kind,
+    hookimpl,
     open_watch_point,
+    stack_which,
     watch_point_file_name,
     watch_point_options,
 )
@@ -117,10 +122,9 @@ def gymprecice_solver_kinds() -> dict[str, str]:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
     """Check ``parameters.prm`` of the pristine case against the preCICE XML."""
-    if solver.kind != KIND:
-        return None
     try:
         _check_options(solver)
         check_against_precice(solver, _read_parameters(solver))
@@ -130,9 +134,8 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
-    if solver.kind != KIND:
-        return None
     _check_options(solver)
     params = _read_parameters(solver)
     if solver.precice_config_file is not None:
@@ -153,9 +156,8 @@ def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_reset_case(solver: SolverContext) -> bool | None:
-    if solver.kind != KIND:
-        return None
     run_dir = solver.run_dir.resolve()
     folder = solver.state.get("output_folder")
     if folder is None:
@@ -174,16 +176,14 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Field | None:
-    if solver.kind != KIND:
-        return None
     return render_fields.read_field(solver, name, time)
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
-    if solver.kind != KIND:
-        return None
     _check_options(solver)
     program = _find_program(solver, str(solver.options.get("program") or DEFAULT_PROGRAM))
     argv = [program, _parameters_name(solver)]
@@ -204,9 +204,8 @@ def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
-    if solver.kind != KIND:
-        return None
     prm = solver.run_dir / _parameters_name(solver)
     for needle, advice in _LOG_HINTS:
         if needle in log_text:
@@ -215,11 +214,10 @@ def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_detect_divergence(
     solver: SolverContext, log_text: str, returncode: int | None
 ) -> str | None:
-    if solver.kind != KIND:
-        return None
     return divergence.detect(solver, log_text, returncode)
 
 

@@ -39,7 +39,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from gymprecice.errors import ConfigError
+from gymprecice.plugin import ConfigError
 
 __all__ = [
     "ElasticityParameters",

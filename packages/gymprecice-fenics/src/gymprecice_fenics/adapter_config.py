@@ -15,8 +15,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from gymprecice.errors import CaseError
-from gymprecice.precice_xml import PreciceConfig
+from gymprecice.plugin import CaseError, PreciceConfig
 
 __all__ = ["AdapterConfig", "check_against_precice"]
 

@@ -27,9 +27,15 @@ import shutil
 import zipfile
 from pathlib import Path
 
-from gymprecice.errors import ConfigError
-from gymprecice.fields import FIELDS_DIR, FIELDS_ENV_VAR, Field, field_file, read_field_file
-from gymprecice.solver import SolverContext
+from gymprecice.plugin import (
+    FIELDS_DIR,
+    FIELDS_ENV_VAR,
+    ConfigError,
+    Field,
+    SolverContext,
+    field_file,
+    read_field_file,
+)
 
 __all__ = ["FIELD_INTERVAL_ENV_VAR", "clear_fields", "field_env", "read_field"]
 

@@ -54,12 +54,21 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
-from gymprecice.divergence import first_match
-from gymprecice.errors import CaseError, ConfigError
-from gymprecice.fields import Field
-from gymprecice.hookspecs import InstallStep, hookimpl
-from gymprecice.solver import DoctorCheck, InterfaceGeometry, LaunchSpec, SolverContext
-from gymprecice.stack import command_output, solver_environment
+from gymprecice.plugin import (
+    CaseError,
+    ConfigError,
+    DoctorCheck,
+    Field,
+    InstallStep,
+    InterfaceGeometry,
+    LaunchSpec,
+    SolverContext,
+    command_output,
+    first_match,
+    for_kind,
+    hookimpl,
+    solver_environment,
+)
 from gymprecice_fenics import fields as render_fields
 from gymprecice_fenics import solver_env
 from gymprecice_fenics.adapter_config import AdapterConfig, check_against_precice
@@ -109,10 +118,9 @@ def gymprecice_solver_kinds() -> dict[str, str]:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
     """Check the pristine case against the preCICE XML; writes nothing."""
-    if solver.kind != KIND:
-        return None
     try:
         _check_options(solver)
         _script(solver)
@@ -125,9 +133,8 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
-    if solver.kind != KIND:
-        return None
     _check_options(solver)
     script = _script(solver)
     python = _checked_python(solver)
@@ -146,9 +153,8 @@ def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_reset_case(solver: SolverContext) -> bool | None:
-    if solver.kind != KIND:
-        return None
     run_dir = solver.run_dir.resolve()
     output = str(solver.options.get("output_folder") or DEFAULT_OUTPUT)
     for folder in (output, "precice-profiling", "precice-exports"):
@@ -163,9 +169,8 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
-    if solver.kind != KIND:
-        return None
     _check_options(solver)
     script = _script(solver)
     python = _checked_python(solver)
@@ -174,36 +179,34 @@ def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Field | None:
-    if solver.kind != KIND:
-        return None
     return render_fields.read_field(solver, name, time)
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
-    if solver.kind != KIND:
-        return None
     if "Traceback (most recent call last)" not in log_text:
         return None
     return _explain_traceback(solver, log_text)
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_detect_divergence(
     solver: SolverContext, log_text: str, returncode: int | None
 ) -> str | None:
-    if solver.kind != KIND or returncode is None or returncode == 0:
+    if returncode is None or returncode == 0:
         return None
     return first_match(log_text, _DIVERGENCE)
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_interface_geometry(
     solver: SolverContext, interface: str, mesh: str
 ) -> InterfaceGeometry | None:
-    if solver.kind != KIND:
-        return None
     if "meshes" not in solver.state:
         solver.state["meshes"] = dry_run(solver, _checked_python(solver), _script(solver))["meshes"]
     coordinates = solver.state["meshes"].get(mesh)

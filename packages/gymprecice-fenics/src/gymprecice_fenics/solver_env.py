@@ -20,8 +20,16 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
-from gymprecice.prerequisites import CXX, PKG_CONFIG, Prerequisite
-from gymprecice.stack import BuildContext, BuildError, InstallStep, command_output, stack_prefix
+from gymprecice.plugin import (
+    CXX,
+    PKG_CONFIG,
+    BuildContext,
+    BuildError,
+    InstallStep,
+    Prerequisite,
+    command_output,
+    stack_prefix,
+)
 
 __all__ = [
     "DEBIAN_PACKAGES",

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gymprecice.solver import InterfaceGeometry
+from gymprecice.plugin import InterfaceGeometry
 
 __all__ = ["jet_profile", "jet_velocity", "rotating_wall_velocity", "synthetic_jets"]
 

@@ -25,12 +25,14 @@ import shutil
 import tarfile
 from pathlib import Path
 
-from gymprecice.errors import GymPreciceError
-from gymprecice.prerequisites import CXX, MAKE, Prerequisite
-from gymprecice.stack import (
+from gymprecice.plugin import (
+    CXX,
+    MAKE,
     BuildContext,
     BuildError,
+    GymPreciceError,
     InstallStep,
+    Prerequisite,
     SourceArchive,
     command_output,
     stack_prefix,

@@ -35,9 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.errors import CaseError, ConfigError
-from gymprecice.solver import LaunchSpec, SolverContext
-from gymprecice.stack import solver_environment
+from gymprecice.plugin import CaseError, ConfigError, LaunchSpec, SolverContext, solver_environment
 from gymprecice_openfoam import checks, control, foamio, prerun_cache
 from gymprecice_openfoam.installation import (
     OpenFOAMInstallation,

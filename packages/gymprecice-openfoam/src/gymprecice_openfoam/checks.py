@@ -30,8 +30,7 @@ import re
 import shutil
 from pathlib import Path
 
-from gymprecice.errors import CaseError
-from gymprecice.solver import DoctorCheck, SolverContext
+from gymprecice.plugin import CaseError, DoctorCheck, SolverContext
 from gymprecice_openfoam import control, foamio
 from gymprecice_openfoam.installation import ADAPTER_LIBRARY, find_openfoam
 from gymprecice_openfoam.mesh import PreciceDict, processor_dirs, read_boundary, read_precice_dict

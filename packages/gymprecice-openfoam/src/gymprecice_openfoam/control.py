@@ -17,7 +17,7 @@ from typing import Any
 
 from foamlib import FoamFile
 
-from gymprecice.errors import CaseError
+from gymprecice.plugin import CaseError
 from gymprecice_openfoam import foamio
 
 ADAPTER_TYPE = "preciceAdapterFunctionObject"

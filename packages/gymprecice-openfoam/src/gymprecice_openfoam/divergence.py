@@ -24,8 +24,7 @@ import math
 import re
 from typing import Any
 
-from gymprecice.divergence import checked_positive, first_match
-from gymprecice.solver import SolverContext
+from gymprecice.plugin import SolverContext, checked_positive, first_match
 
 __all__ = ["COURANT_OPTION", "EXIT_PATTERNS", "courant_limit", "detect"]
 

@@ -53,9 +53,7 @@ from typing import Any
 import numpy as np
 from foamlib import FoamFieldFile, FoamFile
 
-from gymprecice.errors import ConfigError
-from gymprecice.fields import Field
-from gymprecice.solver import SolverContext
+from gymprecice.plugin import ConfigError, Field, SolverContext
 from gymprecice_openfoam import control, foamio, mesh
 
 __all__ = ["after_adapter", "cell_centres", "moving_mesh", "read_field", "set_field_writes"]

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from foamlib import FoamFile, FoamFileDecodeError
 
-from gymprecice.errors import CaseError
+from gymprecice.plugin import CaseError
 
 _HEADER = re.compile(rb"FoamFile\s*\{[^{}]*\}", re.S)
 _ARCH = re.compile(r"label\s*=\s*(\d+)|scalar\s*=\s*(\d+)|(LSB|MSB)")

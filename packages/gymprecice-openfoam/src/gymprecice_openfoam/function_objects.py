@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.errors import CaseError
+from gymprecice.plugin import CaseError
 from gymprecice_openfoam import control, foamio
 
 __all__ = ["ProbeSet", "function_objects", "probe_sets"]

@@ -27,8 +27,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gymprecice.errors import CaseError
-from gymprecice.stack import solver_environment
+from gymprecice.plugin import CaseError, solver_environment
 
 #: Environment variable naming an OpenFOAM ``etc/bashrc`` to source (overrides discovery).
 BASHRC_ENV = "GYMPRECICE_OPENFOAM_BASHRC"

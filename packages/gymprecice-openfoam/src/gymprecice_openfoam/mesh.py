@@ -29,8 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gymprecice.errors import CaseError
-from gymprecice.solver import InterfaceGeometry
+from gymprecice.plugin import CaseError, InterfaceGeometry
 from gymprecice_openfoam import foamio
 
 #: OpenFOAM's ROOTVSMALL for double precision: faces with less fan area count as zero.

@@ -39,8 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gymprecice.errors import GymPreciceError
-from gymprecice.readers import rows_through, time_tolerance
+from gymprecice.plugin import GymPreciceError, rows_through, time_tolerance
 
 __all__ = [
     "ForceCoeffsReader",

@@ -35,27 +35,26 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from gymprecice.errors import CaseError, ConfigError
-from gymprecice.fields import Field
-from gymprecice.hookspecs import InstallStep, hookimpl
-from gymprecice.precice_xml import ParticipantSpec
-from gymprecice.sketch import SolverSketch
-from gymprecice.solver import (
+from gymprecice.plugin import (
+    CaseError,
+    ConfigError,
     DoctorCheck,
+    Field,
+    InstallStep,
     InterfaceGeometry,
     LaunchSpec,
     OutputReader,
+    ParticipantSpec,
     SolverContext,
+    SolverSketch,
+    for_kind,
+    hookimpl,
 )
 from gymprecice_openfoam import case, checks, divergence, outputs
 from gymprecice_openfoam import fields as render_fields
 from gymprecice_openfoam import mesh as meshes  # the geometry hook's argument is named mesh
 
 KIND = "openfoam"
-
-
-def _mine(solver: SolverContext) -> bool:
-    return solver.kind == KIND
 
 
 @hookimpl
@@ -86,10 +85,9 @@ OPTIONS = (
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
     """``gymprecice check`` and env construction: the case against the preCICE XML."""
-    if not _mine(solver):
-        return None
     try:
         _check_options(solver)
     except ConfigError as exc:
@@ -98,9 +96,8 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
-    if not _mine(solver):
-        return None
     _check_options(solver)
     case.prepare_case(solver)
     return True
@@ -125,9 +122,8 @@ def _check_options(solver: SolverContext) -> None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_reset_case(solver: SolverContext) -> bool | None:
-    if not _mine(solver):
-        return None
     case.reset_case(solver)
     # what env.render() draws, written every action; nothing extra when it does not render
     render_fields.set_field_writes(
@@ -140,25 +136,22 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_read_field(solver: SolverContext, name: str, time: float) -> Field | None:
-    if not _mine(solver):
-        return None
     return render_fields.read_field(solver, name, time)
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_sketch_case(solver: SolverContext) -> SolverSketch | None:
-    if not _mine(solver):
-        return None
     from gymprecice_openfoam.sketch import case_sketch  # only `gymprecice sketch` needs it
 
     return case_sketch(solver)
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_launch_solver(solver: SolverContext) -> LaunchSpec | None:
-    if not _mine(solver):
-        return None
     return case.launch_spec(solver)
 
 
@@ -171,18 +164,16 @@ def _log_name(solver: SolverContext) -> str | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_check_solver(solver: SolverContext, log_text: str) -> str | None:
-    if not _mine(solver):
-        return None
     return checks.check_solver(solver, log_text, _log_name(solver))
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_detect_divergence(
     solver: SolverContext, log_text: str, returncode: int | None
 ) -> str | None:
-    if not _mine(solver):
-        return None
     return divergence.detect(solver, log_text, returncode)
 
 
@@ -194,11 +185,10 @@ def _parallel(solver: SolverContext) -> bool | None:
 
 
 @hookimpl
+@for_kind(KIND)
 def gymprecice_interface_geometry(
     solver: SolverContext, interface: str, mesh: str
 ) -> InterfaceGeometry | None:
-    if not _mine(solver):
-        return None
     run_dir = Path(solver.run_dir)
     if not (run_dir / "system" / "preciceDict").is_file():
         return None
@@ -298,7 +288,7 @@ def gymprecice_open_output(
     # The readers are about a file format, not a solver: a solver of another kind that
     # writes OpenFOAM-format function-object output (a test double's partner, a wrapper
     # script) opts in with options {"outputs": "openfoam"}.
-    if not _mine(solver) and solver.options.get("outputs") != "openfoam":
+    if solver.kind != KIND and solver.options.get("outputs") != "openfoam":
         return None
     start = solver.state.get("initial_time")
     return open_reader(Path(solver.run_dir), name, options, start)

@@ -28,7 +28,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from gymprecice.errors import ConfigError
+from gymprecice.plugin import ConfigError
 
 __all__ = ["CACHE_ENV", "cache_dir", "entry_key", "locked_entry", "restore", "store"]
 

@@ -28,9 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.errors import CaseError
-from gymprecice.sketch import SketchPatch, SketchPoints, SolverSketch
-from gymprecice.solver import SolverContext
+from gymprecice.plugin import CaseError, SketchPatch, SketchPoints, SolverContext, SolverSketch
 from gymprecice_openfoam import foamio, mesh
 from gymprecice_openfoam.function_objects import probe_sets
 

@@ -54,7 +54,7 @@ def missing_coupled_stack(*programs: str) -> list[str]:
     absent = [program for program in programs if shutil.which(program) is None]
     missing += [f"OpenFOAM ({program})" for program in absent]
     if not absent:
-        from gymprecice.errors import CaseError
+        from gymprecice.plugin import CaseError
         from gymprecice_openfoam.installation import find_openfoam
 
         try:

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from gymprecice.config import GymPreciceConfig
-from gymprecice.core import DataRef
-from gymprecice.errors import ConfigError
+from gymprecice.env.config import GymPreciceConfig
+from gymprecice.env.core import DataRef
+from gymprecice.plugin.errors import ConfigError
 
 __all__ = ["AgentData", "resolve_agents"]
 

@@ -34,22 +34,22 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.optional import optional_import_error
+from gymprecice.tools.optional import optional_import_error
 
 try:
     from pettingzoo import ParallelEnv
 except ModuleNotFoundError as exc:  # say which extra brings it: gymprecice-core[multiagent]
     raise optional_import_error(exc, "gymprecice.multiagent") from None
 
-from gymprecice.config import GymPreciceConfig
-from gymprecice.core import Adapter, DataDict, DataRef
-from gymprecice.divergence import checked_penalty
-from gymprecice.errors import ConfigError
-from gymprecice.fields import Overlay
-from gymprecice.frames import checked_render_mode, field_requests
+from gymprecice.env.config import GymPreciceConfig
+from gymprecice.env.core import Adapter, DataDict, DataRef
+from gymprecice.env.frames import checked_render_mode, field_requests
+from gymprecice.env.returned_values import find_written, refuse_non_finite
 from gymprecice.multiagent.agents import AgentData, resolve_agents
-from gymprecice.returned_values import find_written, refuse_non_finite
-from gymprecice.solver import InterfaceGeometry, OutputReader
+from gymprecice.plugin.divergence import checked_penalty
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.fields import Overlay
+from gymprecice.plugin.solver import InterfaceGeometry, OutputReader
 
 __all__ = ["MultiAgentAdapter"]
 

@@ -54,14 +54,14 @@ except ImportError as exc:  # ray without its rllib extra fails on one of its ow
         name=getattr(exc, "name", None) or "ray",
     ) from None
 
-from gymprecice.optional import optional_import_error
+from gymprecice.tools.optional import optional_import_error
 
 try:
     from pettingzoo import ParallelEnv
 except ModuleNotFoundError as exc:  # say which extra brings it: gymprecice-core[multiagent]
     raise optional_import_error(exc, __name__) from None
 
-from gymprecice.rllib import EnvCreator
+from gymprecice.learners.rllib import EnvCreator
 
 __all__ = [
     "MultiAgentEnvCreator",

@@ -10,7 +10,7 @@ observation, action, reward and end. One policy trained on it is shared by all a
     from stable_baselines3 import PPO
     from gymprecice.multiagent import JointEnv
     from gymprecice.multiagent.sb3 import SharedPolicyVecEnv
-    from gymprecice.sb3 import ResilientSubprocVecEnv
+    from gymprecice.learners.sb3 import ResilientSubprocVecEnv
 
     def make(i):
         return JointEnv(TwoJets("case", idx=i))
@@ -38,7 +38,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.optional import optional_import_error
+from gymprecice.tools.optional import optional_import_error
 
 try:
     from stable_baselines3.common.vec_env.base_vec_env import (

@@ -48,7 +48,7 @@ class Refused(ValueError):
 def available_kinds() -> dict[str, Any]:
     """The solver kinds a new package can use here: ``command`` and every installed
     plugin's (each with its :class:`~gymprecice.plugins.SolverKind`)."""
-    from gymprecice.plugins import solver_kinds
+    from gymprecice.plugin.manager import solver_kinds
 
     return {k: v for k, v in solver_kinds().items() if k not in EXCLUDED_KINDS}
 

@@ -154,7 +154,7 @@ def _values(pkg: NewPackage, folder: str) -> dict[str, Any]:
 
 
 def _core_version() -> str:
-    from gymprecice.distribution import core_version
+    from gymprecice.tools.distribution import core_version
 
     return core_version()
 

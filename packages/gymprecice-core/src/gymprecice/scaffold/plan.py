@@ -78,7 +78,7 @@ def plan_package(
     plugin = kinds[kind].plugin
     distribution = version = None
     if kind != "command":
-        from gymprecice.plugins import get_plugin_manager
+        from gymprecice.plugin.manager import get_plugin_manager
 
         dist_info = get_plugin_manager().distributions.get(plugin)
         if dist_info is not None:

@@ -59,8 +59,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.core import Adapter
-from gymprecice.processes import PidRegistry
+from gymprecice.env.core import Adapter
+from gymprecice.env.processes import PidRegistry
 from gymprecice.testing import chaos_solver
 from gymprecice.testing.chaos_solver import (
     COEFFICIENTS,
@@ -69,7 +69,7 @@ from gymprecice.testing.chaos_solver import (
     corrupt_output,
     fault_path,
 )
-from gymprecice.testing.flows import fake_cylinder_geometry
+from gymprecice.testing.flows import place_jets
 from gymprecice.testing.partner import DEFAULT_LIBRARY
 
 __all__ = [
@@ -467,9 +467,7 @@ class CylinderEnv(Adapter):
         **kwargs: Any,
     ) -> None:
         super().__init__(options, idx, **kwargs)
-        jets = fake_cylinder_geometry()
-        for name in ("jet1", "jet2"):
-            self.set_interface_vertices(name, jets[name].coordinates)
+        place_jets(self)
         self.set_interface_vertices("probe", PROBES)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(5,), dtype=np.float32)

@@ -60,21 +60,22 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.optional import optional_import_error
+from gymprecice.tools.optional import optional_import_error
 
 try:
     import pytest
 except ModuleNotFoundError as exc:  # say which extra brings it: gymprecice-core[testing]
     raise optional_import_error(exc, __name__) from None
 
-from gymprecice import hookspecs, lifecycle
-from gymprecice.plugins import (
+from gymprecice.env import lifecycle
+from gymprecice.plugin import hookspecs
+from gymprecice.plugin.manager import (
     DISABLE_ENV_VAR,
     ENTRY_POINT_GROUP,
     GymPrecicePluginManager,
     PluginWarning,
 )
-from gymprecice.solver import DoctorCheck, InterfaceGeometry, SolverContext
+from gymprecice.plugin.solver import DoctorCheck, InterfaceGeometry, SolverContext
 from gymprecice.testing.contexts import make_solver_context, validation_context
 
 __all__ = [
@@ -173,6 +174,20 @@ def _inside(path: Path, root: Path) -> bool:
     except ValueError:
         return False
     return True
+
+
+def _names_module(name: str, module: str, plugin: Any) -> bool:
+    """Whether an entry point's module ``name`` is the plugin's: its own name, or another
+    name of the same package that imports as the plugin (an alias, as core's
+    ``gymprecice.default_plugin`` is of ``gymprecice.env.default_plugin``)."""
+    if name == module:
+        return True
+    if name.split(".")[0] != module.split(".")[0]:
+        return False
+    try:
+        return importlib.import_module(name) is plugin
+    except ImportError:
+        return False
 
 
 class SolverPluginConformance:
@@ -336,7 +351,7 @@ class SolverPluginConformance:
         values = [
             ep.value
             for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
-            if ep.value.split(":", 1)[0].strip() == module
+            if _names_module(ep.value.split(":", 1)[0].strip(), module, plugin)
         ]
         _require(
             bool(values),

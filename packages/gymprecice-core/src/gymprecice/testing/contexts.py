@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.solver import SolverContext
 
 __all__ = ["make_solver_context", "validation_context"]
 
@@ -61,7 +61,7 @@ def make_solver_context(
     shutil.copytree(source_dir, run_dir, symlinks=True)
     precice = precice_file = None
     if precice_config is not None:
-        from gymprecice.precice_xml import load_precice_config
+        from gymprecice.plugin.precice_xml import load_precice_config
 
         precice_file = env_dir / Path(precice_config).name
         if not precice_file.exists():
@@ -95,7 +95,7 @@ def validation_context(solver: SolverContext, precice_config: Path | None = None
     """
     precice, precice_file = solver.precice, solver.precice_config_file
     if precice_config is not None:
-        from gymprecice.precice_xml import load_precice_config
+        from gymprecice.plugin.precice_xml import load_precice_config
 
         precice_file = Path(precice_config)
         precice = load_precice_config(precice_file)

@@ -33,9 +33,9 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.fields import Field, grid_points
-from gymprecice.precice_xml import PreciceConfig
-from gymprecice.solver import InterfaceGeometry
+from gymprecice.plugin.fields import Field, grid_points
+from gymprecice.plugin.precice_xml import PreciceConfig
+from gymprecice.plugin.solver import InterfaceGeometry
 
 __all__ = [
     "CYLINDER_CENTER",
@@ -48,6 +48,7 @@ __all__ = [
     "NullFlow",
     "fake_cylinder_geometry",
     "mesh_vertices",
+    "place_jets",
 ]
 
 CYLINDER_CENTER = np.array([0.0, 0.0])
@@ -94,6 +95,17 @@ def fake_cylinder_geometry() -> dict[str, InterfaceGeometry]:
             coordinates=coords, normals=normals, areas=np.full(len(coords), arc), patches=(jet,)
         )
     return out
+
+
+def place_jets(env: Any) -> None:
+    """Put a controller env's ``jet1`` and ``jet2`` interfaces at the fake cylinder's jets.
+
+    What every scripted controller of the fake cylinder does first in ``__init__``, after
+    ``super().__init__``: an :class:`~gymprecice.env.core.Adapter` or a multi-agent one.
+    """
+    jets = fake_cylinder_geometry()
+    for name in JET_ANGLES_DEG:
+        env.set_interface_vertices(name, jets[name].coordinates)
 
 
 def mesh_vertices(mesh: str, dimensions: int) -> np.ndarray:

@@ -61,8 +61,8 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.fields import requested_fields, write_field_file
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.plugin.fields import requested_fields, write_field_file
+from gymprecice.plugin.precice_xml import load_precice_config
 
 __all__ = ["DEFAULT_FLOW", "DEFAULT_LIBRARY", "command", "load_flow", "main", "run"]
 

@@ -20,7 +20,7 @@ import numpy as np
 from gymprecice.multiagent import MultiAgentAdapter
 from gymprecice.testing.chaos import PROBES
 from gymprecice.testing.chaos_solver import COEFFICIENTS
-from gymprecice.testing.flows import fake_cylinder_geometry
+from gymprecice.testing.flows import place_jets
 
 __all__ = ["TwoJetsEnv"]
 
@@ -39,9 +39,7 @@ class TwoJetsEnv(MultiAgentAdapter):
         self, options: Any = None, idx: int | None = 0, *, read_outputs: bool = True, **kwargs: Any
     ) -> None:
         super().__init__(options, idx, **kwargs)
-        jets = fake_cylinder_geometry()
-        for name in ("jet1", "jet2"):
-            self.set_interface_vertices(name, jets[name].coordinates)
+        place_jets(self)
         self.set_interface_vertices("probe", PROBES)
         self.action_spaces = {
             agent: gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)

@@ -16,6 +16,8 @@ contract, two backends, one room each:
 * :mod:`~gymprecice.vector.contract`: what crosses between the pool and a backend (the
   ``Backend`` and ``Host`` protocols, the ``Reply`` of each request), read by both;
 * :mod:`~gymprecice.vector.host`: the env side both backends share;
+* :mod:`~gymprecice.vector.telemetry`: per-step solver, env and learner time, resets and
+  failures, as the pool counts them;
 * facades: :class:`ResilientVectorEnv` (Gymnasium 1.x ``VectorEnv``) here, and
   :class:`gymprecice.sb3.ResilientSubprocVecEnv` (Stable-Baselines3 ``VecEnv``).
 
@@ -76,7 +78,7 @@ __all__ = [
 
 #: names imported on first use: they pull in Stable-Baselines3 or Ray
 _LAZY = {
-    "ResilientSubprocVecEnv": "gymprecice.sb3",
+    "ResilientSubprocVecEnv": "gymprecice.learners.sb3",
     "RayBackend": "gymprecice.vector.ray",
 }
 

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from gymprecice.errors import ConfigError, GymPreciceError, PreciceNotInstalledError
+from gymprecice.plugin.errors import ConfigError, GymPreciceError, PreciceNotInstalledError
 
 #: Exceptions that mean every attempt would fail the same way: stop instead of respawning.
 DEFAULT_FATAL_ERRORS: tuple[type[BaseException], ...] = (ConfigError, PreciceNotInstalledError)
@@ -116,7 +116,7 @@ def describe_exception(
     The exception itself is included, pickled, only when it survives a round trip here;
     the learner rebuilds it for calls whose caller expects the original type.
     """
-    from gymprecice.errors import SolverError
+    from gymprecice.plugin.errors import SolverError
 
     message = exc.summary if isinstance(exc, SolverError) else str(exc)
     desc: dict[str, Any] = {

@@ -11,9 +11,9 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
-from gymprecice.telemetry import Telemetry
 from gymprecice.vector.failures import EnvFailure
 from gymprecice.vector.pool import EnvPool
+from gymprecice.vector.telemetry import Telemetry
 
 __all__ = ["ResilientVectorEnv"]
 

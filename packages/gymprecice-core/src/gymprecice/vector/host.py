@@ -30,8 +30,8 @@ def _run_dir_of(env: Any) -> str | None:
     it can kill what a hung preparation started. Other envs may expose ``run_dir``.
     """
     base = getattr(env, "unwrapped", env)
-    if "gymprecice.core" in sys.modules:
-        from gymprecice.core import Adapter
+    if "gymprecice.env.core" in sys.modules:
+        from gymprecice.env.core import Adapter
 
         if isinstance(base, Adapter):
             return str(base.env_dir)

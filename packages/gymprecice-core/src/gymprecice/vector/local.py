@@ -34,8 +34,8 @@ from multiprocessing.reduction import ForkingPickler
 from pathlib import Path
 from typing import Any
 
-from gymprecice.pidregistry import process_starttime
-from gymprecice.processes import kill_recorded_groups
+from gymprecice.env.pidregistry import process_starttime
+from gymprecice.env.processes import kill_recorded_groups
 from gymprecice.vector import host
 from gymprecice.vector.contract import CRASH, TIMEOUT, Reply
 from gymprecice.vector.failures import TAIL_LINES, describe_exception

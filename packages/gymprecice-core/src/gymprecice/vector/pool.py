@@ -44,8 +44,7 @@ import cloudpickle
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.processes import describe_returncode
-from gymprecice.telemetry import Telemetry
+from gymprecice.env.processes import describe_returncode
 from gymprecice.vector.contract import TIMEOUT, Backend, Host, Reply
 from gymprecice.vector.failures import (
     DEFAULT_FATAL_ERRORS,
@@ -55,6 +54,7 @@ from gymprecice.vector.failures import (
     FailureBudgetExceededError,
     unpickle_exception,
 )
+from gymprecice.vector.telemetry import Telemetry
 
 log = logging.getLogger("gymprecice.vector")
 

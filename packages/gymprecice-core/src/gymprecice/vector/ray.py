@@ -43,7 +43,7 @@ import ray
 from ray.exceptions import GetTimeoutError, RayActorError, RayError, TaskUnschedulableError
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
-from gymprecice.processes import kill_recorded_groups
+from gymprecice.env.processes import kill_recorded_groups
 from gymprecice.vector.contract import CRASH, Reply
 from gymprecice.vector.failures import TAIL_LINES
 from gymprecice.vector.local import LocalBackend
@@ -74,7 +74,7 @@ def solver_cpus(env_fn: Callable[..., Any]) -> int | None:
         return int(declared)
     if not isinstance(env_fn, functools.partial):
         return None
-    from gymprecice.config import GymPreciceConfig
+    from gymprecice.env.config import GymPreciceConfig
 
     for value in (*env_fn.args, *env_fn.keywords.values()):
         if isinstance(value, GymPreciceConfig):

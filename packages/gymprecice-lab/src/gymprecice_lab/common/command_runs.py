@@ -48,7 +48,7 @@ class CommandFailed(SystemExit):
 def parse_command(argv: Sequence[str]) -> argparse.Namespace:
     """``argv`` parsed exactly as ``gymprecice ARGV`` would parse it: by the ``gymprecice``
     command line itself, with every plugin's commands (the lab's among them)."""
-    from gymprecice.cli import build_parser
+    from gymprecice.tools.cli import build_parser
 
     return build_parser().parse_args(list(argv))
 

@@ -89,7 +89,7 @@ def solver_versions() -> dict[str, Any]:
     The doctor probes pyprecice in a child interpreter, so a broken preCICE cannot take the
     run down while its manifest is written.
     """
-    from gymprecice.cli import doctor_report
+    from gymprecice.tools.cli import doctor_report
 
     try:
         report = doctor_report()

@@ -82,7 +82,7 @@ def require_solvers(
     only restart until its failure budget is spent.
     """
     if report is None:
-        from gymprecice.cli import doctor_report
+        from gymprecice.tools.cli import doctor_report
 
         report = doctor_report()
     missing = missing_requirements(report, env, kwargs)

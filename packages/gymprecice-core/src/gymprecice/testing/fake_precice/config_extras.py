@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gymprecice.precice_xml import parse_tree
+from gymprecice.plugin.precice_xml import parse_tree
 from gymprecice.testing.fake_precice.convergence import Measure
 
 

@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from gymprecice.precice_xml import MappingSpec, ParticipantSpec, PreciceConfig
+from gymprecice.plugin.precice_xml import MappingSpec, ParticipantSpec, PreciceConfig
 from gymprecice.testing.fake_precice.errors import PreciceError
 from gymprecice.testing.fake_precice.mesh import Mesh
 from gymprecice.testing.fake_precice.numerics import greater

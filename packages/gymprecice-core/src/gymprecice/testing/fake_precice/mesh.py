@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gymprecice.precice_xml import PreciceConfig
+from gymprecice.plugin.precice_xml import PreciceConfig
 
 
 @dataclass

@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.errors import ConfigError
-from gymprecice.precice_xml import PreciceConfig, load_precice_config
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.precice_xml import PreciceConfig, load_precice_config
 from gymprecice.testing.fake_precice.arguments import as_vertex_ids, check_array_like, convert
 from gymprecice.testing.fake_precice.config_extras import read_extras, truthy
 from gymprecice.testing.fake_precice.coupling import Coupling

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gymprecice.precice_xml import PreciceConfig
+from gymprecice.plugin.precice_xml import PreciceConfig
 from gymprecice.testing.fake_precice.channel import Channel, short_socket_dir
 from gymprecice.testing.fake_precice.coupling import Coupling
 from gymprecice.testing.fake_precice.errors import PreciceError

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gymprecice.precice_xml import ParticipantSpec, PreciceConfig
+from gymprecice.plugin.precice_xml import ParticipantSpec, PreciceConfig
 from gymprecice.testing.fake_precice.errors import PreciceError
 from gymprecice.testing.fake_precice.mapping import nearest
 from gymprecice.testing.fake_precice.mesh import Mesh, data_dims

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gymprecice.precice_xml import CouplingSchemeSpec
+from gymprecice.plugin.precice_xml import CouplingSchemeSpec
 from gymprecice.testing.fake_precice.clock import Time
 from gymprecice.testing.fake_precice.config_extras import SchemeExtras
 from gymprecice.testing.fake_precice.errors import PreciceError

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from gymprecice.precice_xml import CouplingSchemeSpec
+from gymprecice.plugin.precice_xml import CouplingSchemeSpec
 from gymprecice.testing.fake_precice.config_extras import SchemeExtras
 from gymprecice.testing.fake_precice.schemes.base import Scheme
 
