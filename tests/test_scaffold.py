@@ -53,7 +53,7 @@ def test_the_default_package_is_written_and_its_case_passes_check(tmp_path, caps
     status, out, err = new(capsys, "my-env", "--dir", str(target))
     assert status == 0, err
     assert "registers my-env/MyEnv-v0 (short name my-env)" in out
-    assert "gymprecice train my-env/MyEnv-v0 --double --timesteps 64" in out
+    assert "gymprecice train my-env/MyEnv-v0 --double --timesteps 80" in out
     files = set(tree(target))
     for path in (
         "pyproject.toml",

@@ -174,7 +174,7 @@ def cmd_new(args: argparse.Namespace) -> int:
     print("next:")
     print(f"  pip install -e {shown}")
     print(f"  gymprecice check {shown}/src/{pkg.module}/case")
-    print(f"  gymprecice train {pkg.env_id} --double --timesteps 64")
+    print(f"  gymprecice train {pkg.env_id} --double --timesteps 80")
     print(f"  pytest {shown}/tests")
     return 0
 

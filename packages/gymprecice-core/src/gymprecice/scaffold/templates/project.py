@@ -56,7 +56,7 @@ The controller {{actuation_text}}; it reads {{sensing_text}}. {{solver_text}}
 ```bash
 pip install -e ./{{folder}}
 gymprecice check {{case_path}}
-gymprecice train {{env_id}} --double --timesteps 64
+gymprecice train {{env_id}} --double --timesteps 80
 pytest {{folder}}/tests
 ```
 
