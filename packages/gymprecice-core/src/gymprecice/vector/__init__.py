@@ -8,7 +8,11 @@ contract, two backends, one room each:
 
 * :mod:`~gymprecice.vector.pool`: the contract (deadlines per step and reset, respawn of
   a failed env with its episode truncated and the failure in ``info["failure"]``, a
-  failure budget, telemetry), independent of where an env lives;
+  failure budget, telemetry), independent of where an env lives; its parts are
+  :mod:`~gymprecice.vector.jobs` (what each operation does with its answers),
+  :mod:`~gymprecice.vector.restarts` (failure handling and the restart policy),
+  :mod:`~gymprecice.vector.driver` (a batch of jobs against their deadlines) and
+  :mod:`~gymprecice.vector.slots` (the records they share);
 * :mod:`~gymprecice.vector.local`: each env in a worker process of this machine
   (``forkserver`` by default), in its own process group;
 * :mod:`~gymprecice.vector.ray`: each env in a Ray actor anywhere on a cluster

@@ -22,39 +22,46 @@ A step is a generator per env (a *job*): it sends a request, yields the deadline
 answer, and gets back a :class:`~gymprecice.vector.contract.Reply` (the message, a crash or
 a timeout). What a backend offers and returns is :mod:`gymprecice.vector.contract`, which
 the pool and the backends read; the pool imports a backend only when it makes one.
+
+The pool is split by what it does: this module is its face (construction, the public
+API, closing); :mod:`.jobs` holds what each operation does with its answers,
+:mod:`.restarts` the failure handling and restart policy (``failures.jsonl``, the
+budget, fatal errors), :mod:`.driver` the loop that runs a batch of jobs against their
+deadlines and :mod:`.slots` the per-env and per-batch records they share.
 """
 
 from __future__ import annotations
 
 import atexit
 import contextlib
-import json
 import logging
-import math
 import os
 import time
 import weakref
-from collections import deque
-from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import cloudpickle
 import gymnasium as gym
-import numpy as np
 
-from gymprecice.env.processes import describe_returncode
-from gymprecice.vector.contract import TIMEOUT, Backend, Host, Reply
-from gymprecice.vector.failures import (
-    DEFAULT_FATAL_ERRORS,
-    TAIL_LINES,
-    EnvFailedError,
-    EnvFailure,
-    FailureBudgetExceededError,
-    unpickle_exception,
-)
+from gymprecice.vector.contract import Backend, Host
+from gymprecice.vector.driver import BatchDriver
+from gymprecice.vector.failures import DEFAULT_FATAL_ERRORS, EnvFailure
+from gymprecice.vector.jobs import EnvJobs
+from gymprecice.vector.restarts import FAILURES_FILE, CallFailed
+from gymprecice.vector.slots import Batch, Slot, StepResult
 from gymprecice.vector.telemetry import Telemetry
+
+__all__ = [
+    "DEFAULT_CALL_TIMEOUT",
+    "DEFAULT_CLOSE_TIMEOUT",
+    "DEFAULT_RESET_TIMEOUT",
+    "DEFAULT_STEP_TIMEOUT",
+    "FAILURES_FILE",
+    "EnvPool",
+    "StepResult",
+]
 
 log = logging.getLogger("gymprecice.vector")
 
@@ -62,74 +69,6 @@ DEFAULT_STEP_TIMEOUT = 900.0
 DEFAULT_RESET_TIMEOUT = 1800.0
 DEFAULT_CALL_TIMEOUT = 120.0
 DEFAULT_CLOSE_TIMEOUT = 30.0
-#: every failure of a pool's envs, one JSON line each (``EnvFailure.to_info``), in its
-#: ``log_dir``: what a run's restarts were, after it ended (appended to across runs)
-FAILURES_FILE = "failures.jsonl"
-
-
-@dataclass
-class StepResult:
-    """One env's part of a batch step, same-step autoreset applied.
-
-    When the episode ended (``terminated or truncated``), ``obs``/``info`` belong to the
-    next episode's reset and ``final_obs``/``final_info`` to the ended one. ``failure`` is
-    set when the episode was cut short by an env failure (then ``truncated`` is true,
-    ``reward`` is 0 and ``final_obs`` is the last observation the learner received).
-    """
-
-    obs: Any
-    reward: float
-    terminated: bool
-    truncated: bool
-    info: dict[str, Any]
-    final_obs: Any = None
-    final_info: dict[str, Any] | None = None
-    failure: EnvFailure | None = None
-
-    @property
-    def done(self) -> bool:
-        return self.terminated or self.truncated
-
-
-@dataclass
-class _Outcome:
-    value: Any = None
-    failure: EnvFailure | None = None
-    #: an exception raised by a called method (the env itself is fine)
-    call_error: dict[str, Any] | None = None
-    roundtrip: float = 0.0
-
-
-@dataclass
-class _Slot:
-    """Everything the learner knows about env ``index`` across its workers' lives."""
-
-    index: int
-    failure_window: int
-    worker: Host | None = None
-    run_dir: str | None = None
-    last_obs: Any = None
-    episode_active: bool = False
-    pending_failure: EnvFailure | None = None
-    seed: int | None = None
-    options: dict[str, Any] | None = None
-    episodes: int = 0
-    spawns: int = 0
-    failures: list[EnvFailure] = field(default_factory=list)
-    history: deque[bool] = field(init=False)
-
-    def __post_init__(self) -> None:
-        self.history = deque(maxlen=self.failure_window)
-
-
-_Job = Generator[float, Reply, Any]
-
-
-@dataclass
-class _Batch:
-    jobs: dict[int, _Job]
-    waiting: dict[int, float] = field(default_factory=dict)
-    results: dict[int, Any] = field(default_factory=dict)
 
 
 _LIVE_POOLS: weakref.WeakSet[EnvPool] = weakref.WeakSet()
@@ -142,7 +81,7 @@ def _close_live_pools() -> None:
             pool.close(timeout=2.0)
 
 
-class EnvPool:
+class EnvPool(EnvJobs, BatchDriver):
     """N env workers behind deadlines, respawning failed envs (see the module docstring).
 
     One pool is driven by one thread (the learner's). As with any ``forkserver`` or
@@ -246,11 +185,11 @@ class EnvPool:
                     f"env_fns[{index}] cannot be pickled to reach its worker process ({exc}); "
                     "use a module-level function, a class, or functools.partial of one"
                 ) from exc
-        self._slots = [_Slot(i, failure_window) for i in range(self.num_envs)]
+        self._slots = [Slot(i, failure_window) for i in range(self.num_envs)]
         self.telemetry = telemetry or Telemetry(self.num_envs)
         self.telemetry.num_envs = self.num_envs
         self._closed = False
-        self._pending: _Batch | None = None
+        self._pending: Batch | None = None
         self._reset_done = False
         self._last_step_end: float | None = None
         self._step_sent: float | None = None
@@ -383,7 +322,7 @@ class EnvPool:
         values = []
         for i in targets:
             value = results[i]
-            if isinstance(value, _CallFailed):
+            if isinstance(value, CallFailed):
                 raise value.exception()
             values.append(value)
         return values
@@ -423,368 +362,6 @@ class EnvPool:
         with contextlib.suppress(Exception):
             if not self._closed:
                 self.close(timeout=1.0)
-
-    # -- jobs: one generator per env and operation -------------------------------------------
-    # A job sends a request to its env's worker, then yields the deadline of the answer;
-    # the driver (_finish) sends it back a Reply: the message, a crash or a timeout.
-
-    def _start_job(self, slot: _Slot) -> _Job:
-        while True:
-            outcome = yield from self._spawn(slot)
-            if outcome.failure is None:
-                return outcome.value
-
-    def _reset_job(self, slot: _Slot, seed: int | None, options: dict[str, Any] | None) -> _Job:
-        if slot.episode_active:
-            slot.history.append(False)  # the episode ended, just not by itself
-        slot.episode_active = False
-        slot.pending_failure = None
-        slot.seed = seed
-        slot.options = options
-        obs, info = yield from self._episode_start(slot, seed, options)
-        return obs, info
-
-    def _step_job(self, slot: _Slot, action: Any) -> _Job:
-        failure, slot.pending_failure = slot.pending_failure, None
-        if failure is None and slot.worker is None and slot.failures:
-            failure = slot.failures[-1]  # a call killed it and could not restart it
-        if failure is None:
-            outcome = yield from self._request(slot, "step", "step", action, self.step_timeout)
-            if outcome.failure is None:
-                (obs, reward, terminated, truncated, info), worker_s = outcome.value
-                self.telemetry.record_step(info, worker_s, outcome.roundtrip)
-                terminated, truncated = bool(terminated), bool(truncated)
-                if not (terminated or truncated):
-                    slot.last_obs = obs
-                    return StepResult(obs, float(reward), False, False, dict(info))
-                slot.history.append(False)
-                slot.episode_active = False
-                new_obs, new_info = yield from self._episode_start(slot, None, slot.options)
-                return StepResult(
-                    new_obs,
-                    float(reward),
-                    terminated,
-                    truncated,
-                    new_info,
-                    final_obs=obs,
-                    final_info=dict(info),
-                )
-            failure = outcome.failure
-        final_obs = slot.last_obs
-        new_obs, new_info = yield from self._episode_start(
-            slot, self._derived_seed(slot), slot.options
-        )
-        new_info = {**new_info, "failure": failure.to_info()}
-        return StepResult(
-            new_obs,
-            0.0,
-            False,
-            True,
-            new_info,
-            final_obs=final_obs,
-            final_info={"failure": failure.to_info()},
-            failure=failure,
-        )
-
-    def _call_job(self, slot: _Slot, command: str, data: Any) -> _Job:
-        last: EnvFailure | None = None
-        was_active = slot.episode_active
-        for _ in range(2):
-            if slot.worker is None:
-                started = yield from self._spawn(slot)
-                if started.failure is not None:
-                    last = started.failure
-                    continue
-            outcome = yield from self._request(slot, "call", command, data, self.call_timeout)
-            if outcome.call_error is not None:
-                return _CallFailed(slot.index, command, data, outcome.call_error)
-            if outcome.failure is None:
-                return outcome.value[0]
-            last = outcome.failure
-            if was_active:
-                # The episode died with the worker: the next step reports it (truncated).
-                slot.pending_failure = last
-        assert last is not None
-        return _CallFailed(slot.index, command, data, None, last)
-
-    def _episode_start(
-        self, slot: _Slot, seed: int | None, options: dict[str, Any] | None
-    ) -> Generator[float, Reply, tuple[Any, dict[str, Any]]]:
-        """Reset the env (respawning it first if needed) until it works or the budget ends."""
-        failures: list[EnvFailure] = []
-        while True:
-            if slot.worker is None:
-                started = yield from self._spawn(slot)
-                if started.failure is not None:
-                    failures.append(started.failure)
-                    seed = self._derived_seed(slot)
-                    continue
-            outcome = yield from self._request(
-                slot, "reset", "reset", {"seed": seed, "options": options}, self.reset_timeout
-            )
-            if outcome.failure is not None:
-                failures.append(outcome.failure)
-                seed = self._derived_seed(slot)
-                continue
-            (obs, info), worker_s = outcome.value
-            info = dict(info)
-            self.telemetry.record_reset(info, worker_s)
-            slot.last_obs = obs
-            slot.episode_active = True
-            slot.episodes += 1
-            if failures:
-                info["reset_failures"] = [f.to_info() for f in failures]
-            return obs, info
-
-    def _spawn(self, slot: _Slot) -> Generator[float, Reply, _Outcome]:
-        """Start a worker for ``slot`` and wait until its env is built."""
-        started = time.perf_counter()
-        log_path = self.log_dir / f"env_{slot.index}.log"
-        slot.worker = self.backend.spawn(slot.index, self._payloads[slot.index], log_path)
-        if slot.spawns:
-            self.telemetry.respawns += 1
-        slot.spawns += 1
-        outcome = yield from self._await(slot, "start", self.reset_timeout)
-        if outcome.failure is None:
-            ready, _ = outcome.value
-            slot.run_dir = ready.get("run_dir") or slot.run_dir
-            self.telemetry.add("spawn_s", time.perf_counter() - started)
-            outcome.value = ready
-        return outcome
-
-    def _request(
-        self, slot: _Slot, phase: str, command: str, data: Any, timeout: float | None
-    ) -> Generator[float, Reply, _Outcome]:
-        assert slot.worker is not None
-        slot.worker.send(command, data)
-        return (yield from self._await(slot, phase, timeout))
-
-    def _await(
-        self, slot: _Slot, phase: str, timeout: float | None
-    ) -> Generator[float, Reply, _Outcome]:
-        sent = time.perf_counter()
-        deadline = math.inf if timeout is None else time.monotonic() + timeout
-        reply = yield deadline
-        roundtrip = time.perf_counter() - sent
-        description: dict[str, Any] | None = None
-        if reply.kind == "message":
-            tag, value = reply.value
-            if tag == "ok":
-                return _Outcome(value=value, roundtrip=roundtrip)
-            description = value
-            if phase == "call" and not description.get("fatal"):
-                return _Outcome(call_error=description, roundtrip=roundtrip)
-            kind = "error"
-        else:
-            kind = reply.kind
-        failure = self._fail(slot, kind, phase, description, timeout)
-        return _Outcome(failure=failure, roundtrip=roundtrip)
-
-    # -- failures ---------------------------------------------------------------------------
-    def _fail(
-        self,
-        slot: _Slot,
-        kind: str,
-        phase: str,
-        description: dict[str, Any] | None,
-        timeout: float | None,
-    ) -> EnvFailure:
-        """Kill everything of the env, record and log the failure, enforce the budget."""
-        worker, slot.worker = slot.worker, None
-        returncode = None
-        tail = ""
-        log_file = None
-        where = "host"
-        if worker is not None:
-            returncode = worker.kill()
-            where = worker.where  # after the kill, which may learn that its node is lost
-            tail = worker.tail()
-            log_file = str(worker.log_path)
-        killed: list[int] = []
-        try:
-            killed = self.backend.cleanup(slot.run_dir, worker, self.kill_grace)
-        except OSError as exc:
-            log.warning("env %d: could not read its pid registry: %s", slot.index, exc)
-        desc = description or {}
-        if kind == "crash":
-            message = (
-                f"env {slot.index}: its {where} died during '{phase}' "
-                f"({describe_returncode(returncode) if returncode is not None else 'status unknown'})"
-            )
-            type_name = "WorkerCrashed"
-        elif kind == "timeout":
-            limit = f"{timeout:g} s" if timeout is not None else "its deadline"
-            message = (
-                f"env {slot.index}: no answer to '{phase}' within {limit}; the env looks "
-                f"hung, so its {where} and {len(killed)} recorded process group(s) "
-                "were killed"
-            )
-            type_name = "Timeout"
-        else:
-            message = desc.get("message", "")
-            type_name = desc.get("type", "Exception")
-        failure = EnvFailure(
-            env_index=slot.index,
-            kind=kind,
-            phase=phase,
-            type=type_name,
-            message=message,
-            log_tail=desc.get("log_tail") or tail,
-            log_file=desc.get("log_file") if desc.get("log_tail") else log_file,
-            returncode=desc.get("returncode", returncode),
-            solver=desc.get("solver"),
-            traceback=desc.get("traceback", ""),
-            episode=slot.episodes,
-            wall_time=time.time(),
-            killed_groups=tuple(killed),
-        )
-        slot.failures.append(failure)
-        slot.history.append(True)
-        slot.episode_active = False
-        self.telemetry.record_failure(failure)
-        with contextlib.suppress(OSError), open(self.log_dir / FAILURES_FILE, "a") as record:
-            record.write(json.dumps(failure.to_info(), default=str) + "\n")
-        recent = sum(slot.history)
-        log.warning(
-            "env %d failed (%d of at most %d in its last %d episodes); restarting it. %s",
-            slot.index,
-            recent,
-            self.max_failures_per_env,
-            self.failure_window,
-            failure.describe(tail_lines=TAIL_LINES),
-        )
-        if desc.get("fatal"):
-            raise _FatalFailure(failure, desc)
-        if recent >= self.max_failures_per_env:
-            raise FailureBudgetExceededError(
-                f"env {slot.index} failed {recent} times within its last "
-                f"{len(slot.history)} episodes (max_failures_per_env="
-                f"{self.max_failures_per_env}, failure_window={self.failure_window}); "
-                "stopping the run instead of restarting it again. Fix the cause (see the log "
-                "tails below) or raise the budget.",
-                {s.index: s.failures for s in self._slots if s.failures},
-            )
-        return failure
-
-    def _derived_seed(self, slot: _Slot) -> int | None:
-        """Seed of a respawned env's first reset: reproducible from the env's own seed."""
-        if slot.seed is None:
-            return None
-        state = np.random.SeedSequence([int(slot.seed) % 2**63, len(slot.failures)])
-        return int(state.generate_state(1, dtype=np.uint32)[0])
-
-    # -- the driver --------------------------------------------------------------------------
-    def _check_idle(self) -> None:
-        if self._closed:
-            raise gym.error.ClosedEnvironmentError("the vector env is closed")
-        if self._pending is not None:
-            raise gym.error.AlreadyPendingCallError(
-                "a step is in flight: call step_wait() first", "step"
-            )
-
-    def _run(self, jobs: dict[int, _Job]) -> dict[int, Any]:
-        return self._finish(self._start(jobs))
-
-    def _start(self, jobs: dict[int, _Job]) -> _Batch:
-        batch = _Batch(jobs)
-        try:
-            for index in jobs:
-                self._advance(batch, index, None)
-        except BaseException as exc:
-            self._abort(batch, exc)
-            if isinstance(exc, _FatalFailure):
-                raise exc.rebuild() from None
-            raise
-        return batch
-
-    def _advance(self, batch: _Batch, index: int, reply: Reply | None) -> None:
-        try:
-            deadline = batch.jobs[index].send(reply)  # type: ignore[arg-type]
-        except StopIteration as stop:
-            batch.waiting.pop(index, None)
-            batch.results[index] = stop.value
-            return
-        batch.waiting[index] = deadline
-
-    def _finish(self, batch: _Batch) -> dict[int, Any]:
-        try:
-            while batch.waiting:
-                earliest = min(batch.waiting.values())
-                timeout = None if earliest == math.inf else max(0.0, earliest - time.monotonic())
-                hosts = {i: self._slots[i].worker for i in batch.waiting}
-                replies = self.backend.wait(hosts, timeout)  # type: ignore[arg-type]
-                now = time.monotonic()
-                for index in sorted(batch.waiting):
-                    if index in replies:
-                        reply = replies[index]
-                    elif now >= batch.waiting[index]:
-                        reply = TIMEOUT
-                    else:
-                        continue
-                    self._advance(batch, index, reply)
-        except BaseException as exc:
-            self._abort(batch, exc)
-            if isinstance(exc, _FatalFailure):
-                raise exc.rebuild() from None
-            raise
-        return batch.results
-
-    def _abort(self, batch: _Batch, exc: BaseException) -> None:
-        """An exception escaped a job (budget spent, fatal error, Ctrl-C): close all."""
-        for job in batch.jobs.values():
-            with contextlib.suppress(Exception):
-                job.close()
-        if not isinstance(exc, (FailureBudgetExceededError, _FatalFailure)):
-            log.warning("vector env interrupted by %s; closing it", type(exc).__name__)
-        self.close(timeout=min(self.close_timeout, 5.0))
-
-
-class _FatalFailure(Exception):
-    """Internal: carries a fatal env failure out of the driver."""
-
-    def __init__(self, failure: EnvFailure, description: dict[str, Any]):
-        super().__init__(failure.message)
-        self.failure = failure
-        self.description = description
-
-    def rebuild(self) -> BaseException:
-        original = unpickle_exception(self.description.get("pickled"))
-        text = (
-            f"env {self.failure.env_index} failed with an error that restarting cannot fix, so "
-            f"the run stops: {self.failure.type}: {self.failure.message}"
-        )
-        if original is not None:
-            with contextlib.suppress(Exception):
-                original.add_note(f"(raised in env {self.failure.env_index}'s worker process)")
-            return original
-        return EnvFailedError(text, self.failure)
-
-
-@dataclass
-class _CallFailed:
-    index: int
-    command: str
-    data: Any
-    description: dict[str, Any] | None
-    failure: EnvFailure | None = None
-
-    def exception(self) -> BaseException:
-        what = self.data[0] if isinstance(self.data, tuple) and self.data else self.data
-        if self.description is not None:
-            original = unpickle_exception(self.description.get("pickled"))
-            if original is not None:
-                with contextlib.suppress(Exception):
-                    original.add_note(f"(raised by {self.command} {what!r} in env {self.index})")
-                return original
-            return EnvFailedError(
-                f"env {self.index}: {self.command} {what!r} raised "
-                f"{self.description.get('type')}: {self.description.get('message')}"
-            )
-        assert self.failure is not None
-        return EnvFailedError(
-            f"env {self.index}: {self.command} {what!r} failed twice: {self.failure.message}",
-            self.failure,
-        )
 
 
 def _make_backend(backend: Backend | str | None, start_method: str | None, daemon: bool) -> Backend:
