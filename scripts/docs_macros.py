@@ -50,6 +50,8 @@ HEADLINES: dict[str, tuple[str, str, str]] = {
     "rotating-cylinder-fast": ("settled_floor_fraction", "median", "percent"),
     "perpendicular-flap-fast": ("mean_tip_displacement", "mean", "{:.4f} m"),
     "heated-plate-fast": ("mean_tracking_error", "mean", "{:.3f} K"),
+    # observation="integral": results.json as the benchmark wrote it
+    "heated-plate-fast-integral": ("objective", "mean", "{:.3f} K"),
     # results.json as the benchmark wrote it: the env's objective under "objective"
     "two-flaps-fast": ("objective", "mean", "{:.5f} m"),
     "two-flaps-fast-one-controller": ("objective", "mean", "{:.5f} m"),
@@ -133,6 +135,22 @@ def score(env: str, controller: str, results: Path = RESULTS) -> str:
     raise KeyError(f"docs/results/benchmark-{env}.json has no controller {controller!r}: {labels}")
 
 
+def seed_means(env: str, controller: str, results: Path = RESULTS) -> str:
+    """A benchmarked controller's score per seed (its mean over the starts), in seed
+    order: ``0.230, 0.230, 0.243, 0.307 and 0.252 K``; from a results file that keeps
+    every score (the newer form)."""
+    metric, _, how = HEADLINES[env]
+    data = _load(results / f"benchmark-{env}.json")
+    for entry in data["controllers"]:
+        if entry["label"] == controller:
+            means = [sum(row) / len(row) for row in entry["metrics"][metric]["scores"]]
+            texts = [_write(m, how) for m in means]
+            unit = texts[-1].split(" ", 1)[1] if " " in texts[-1] else ""
+            numbers = [t.split(" ", 1)[0] for t in texts]
+            return f"{', '.join(numbers[:-1])} and {numbers[-1]}" + (f" {unit}" if unit else "")
+    raise KeyError(f"docs/results/benchmark-{env}.json has no controller {controller!r}")
+
+
 def time_to_floor(recipe: str, fraction: float, results: Path = RESULTS) -> dict[str, str]:
     """The median time to a fraction of the drag floor: ``median``, ``low``, ``high``, ``reached``."""
     data = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")
@@ -170,7 +188,10 @@ RESULT_ROWS: list[tuple[str, list[tuple[str, str, str]], tuple[str, str, str], s
     ),
     (
         "heated plate: mean tracking error (lower is better)",
-        [("SAC", "heated-plate-fast", "SAC")],
+        [
+            ("SAC", "heated-plate-fast", "SAC"),
+            ("SAC seeing the integrated error", "heated-plate-fast-integral", "SAC"),
+        ],
         ("PID", "heated-plate-fast", "best PID"),
         "heated-plate-fast",
     ),
@@ -251,6 +272,7 @@ def define_env(env: Any) -> None:
     env.macro(command_reference)
     env.macro(score)
     env.macro(results_table)
+    env.macro(seed_means)
     env.macro(time_to_floor)
     env.filter(clock)
     env.filter(thousands)
