@@ -12,8 +12,9 @@ broken at reset, env processes killed. The test checks that
   the observations;
 * every episode cut short by a failure was reported as truncated with its failure;
 * each env's worker log and solver log exist;
-* no process of any env survives the run (all processes seen during the run, and every
-  process started with this run's fault directory in its environment, are gone).
+* no process of any env survives the run (all processes seen during the run are gone
+  within 5 s of the close, and every process started with this run's fault directory in
+  its environment is gone).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from gymprecice.testing.chaos import (
     CylinderEnv,
     ProcessWatcher,
     corrupt_output,
+    describe_processes,
     env_processes,
     inject,
     processes_with_environment,
@@ -190,6 +192,6 @@ def test_soak_100_episodes_with_random_faults(tmp_path, monkeypatch):
         assert (tmp_path / "logs" / f"env_{i}.log").stat().st_size > 0
         assert (tmp_path / "runs" / f"env_{i}" / "fluid" / "solver.log").exists()
     # nothing leaked
-    leaked = sorted({p for w in watchers for p in w.leaked()})
-    assert not leaked, f"processes survived the run: {leaked}"
+    leaked = sorted({p for w in watchers for p in w.leaked(within=5.0)})
+    assert not leaked, f"processes survived the run: {describe_processes(leaked)}"
     assert processes_with_environment(FAULTS_VARIABLE, str(faults.resolve())) == []

@@ -60,6 +60,7 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.env.core import Adapter
+from gymprecice.env.pidregistry import process_starttime
 from gymprecice.env.processes import PidRegistry
 from gymprecice.testing import chaos_solver
 from gymprecice.testing.chaos_solver import (
@@ -415,13 +416,15 @@ class ProcessWatcher:
 
     Processes of a failing env come and go within seconds; sampling in a thread while the
     test drives the env catches them, so that the test can check afterwards that every one
-    of them is gone (``leaked()``).
+    of them is gone (``leaked()``). Each is remembered with its start time: a pid that a
+    later process took (pids wrap at 32,768 on many machines) is not the one seen.
     """
 
     def __init__(self, sample: Callable[[], set[int]], interval: float = 0.05) -> None:
         self.sample = sample
         self.interval = interval
         self.seen: set[int] = set()
+        self._started: dict[int, int | None] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="process-watcher", daemon=True)
         self._thread.start()
@@ -429,7 +432,9 @@ class ProcessWatcher:
     def _run(self) -> None:
         while not self._stop.is_set():
             try:
-                self.seen |= self.sample()
+                for pid in self.sample() - self.seen:
+                    self._started[pid] = process_starttime(pid)
+                    self.seen.add(pid)
             except Exception:  # a racing exit while reading /proc
                 pass
             self._stop.wait(self.interval)
@@ -440,10 +445,27 @@ class ProcessWatcher:
         self._thread.join()
         return self.seen
 
-    def leaked(self, keep: Iterable[int] = ()) -> list[int]:
-        """Pids seen that are still alive, except ``keep`` (e.g. the current incarnation)."""
+    def leaked(self, keep: Iterable[int] = (), within: float = 0.0) -> list[int]:
+        """Processes seen that are still alive, except ``keep`` (e.g. the current
+        incarnation), waiting up to ``within`` seconds for them to exit (a process that
+        is ending, such as an owner's watchdog that saw its owner go, takes a moment)."""
         allowed = set(keep)
-        return sorted(p for p in self.seen if p not in allowed and pid_alive(p))
+
+        def alive() -> list[int]:
+            return sorted(
+                p
+                for p in self.seen
+                if p not in allowed
+                and pid_alive(p)
+                and process_starttime(p) == self._started.get(p)
+            )
+
+        deadline = time.monotonic() + within
+        left = alive()
+        while left and time.monotonic() < deadline:
+            time.sleep(0.05)
+            left = alive()
+        return left
 
 
 # -- the env ------------------------------------------------------------------------------
