@@ -34,7 +34,7 @@ from multiprocessing.reduction import ForkingPickler
 from pathlib import Path
 from typing import Any
 
-from gymprecice.env.pidregistry import process_starttime
+from gymprecice.env.owner_watchdog import Owner, this_owner
 from gymprecice.env.processes import kill_recorded_groups
 from gymprecice.vector import host
 from gymprecice.vector.contract import CRASH, TIMEOUT, Reply
@@ -63,29 +63,25 @@ def _die_with_parent() -> None:
         libc.prctl(pr_set_pdeathsig, int(signal.SIGTERM), 0, 0, 0)
 
 
-def _die_with_learner(pid: int, starttime: int | None) -> None:
-    """SIGTERM to this worker when the learner (``pid``, started at ``starttime``) exits.
+def _die_with_learner(learner: Owner) -> None:
+    """SIGTERM to this worker when ``learner`` (its pid and start time) exits.
 
     A thread waits on a pidfd of the learner; where pidfds are missing (Linux before 5.3)
     it looks every half second. A learner already gone, or a pid that now names another
     process, ends the worker at once.
     """
-    if not sys.platform.startswith("linux") or pid == os.getpid():
+    if not sys.platform.startswith("linux") or learner.pid == os.getpid():
         return
     try:
-        fd: int | None = os.pidfd_open(pid)
+        fd: int | None = os.pidfd_open(learner.pid)
     except (AttributeError, OSError):
         fd = None
 
-    def same_learner() -> bool:
-        now = process_starttime(pid)
-        return now is not None and (starttime is None or now == starttime)
-
     def wait_for_exit() -> None:
-        if fd is not None and same_learner():
+        if fd is not None and learner.alive():
             select.select([fd], [], [])
         else:
-            while same_learner():
+            while learner.alive():
                 time.sleep(0.5)
         os.kill(os.getpid(), signal.SIGTERM)
 
@@ -119,7 +115,7 @@ def _worker_main(
     conn: Connection,
     log_path: str,
     environ: dict[str, str],
-    learner: tuple[int, int | None] | None = None,
+    learner: Owner | None = None,
 ) -> None:
     """Body of an env worker process: build the env, then serve requests until closed.
 
@@ -141,7 +137,7 @@ def _worker_main(
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the learner decides when to stop
     _die_with_parent()
     if learner is not None:
-        _die_with_learner(*learner)
+        _die_with_learner(learner)
     fatal: tuple[type[BaseException], ...] = ()
     env: Any = None
     run_dir: str | None = None
@@ -270,7 +266,7 @@ class LocalBackend:
             offset = 0
         process = self._ctx.Process(  # type: ignore[attr-defined]
             target=_worker_main,
-            args=(index, payload, child, str(log_path), dict(os.environ), _learner()),
+            args=(index, payload, child, str(log_path), dict(os.environ), this_owner()),
             name=f"gymprecice-env-{index}",
             daemon=self.daemon,
         )
@@ -365,11 +361,6 @@ def recv_bytes(fd: int, deadline: float) -> bytes:
         if header is None and needed == 12 and len(buffer) >= 12:
             header, needed = 12, 12 + struct.unpack_from("!Q", buffer, 4)[0]
     return bytes(buffer[header:needed])
-
-
-def _learner() -> tuple[int, int | None]:
-    """This process, as a worker's learner: its pid and start time."""
-    return os.getpid(), process_starttime(os.getpid())
 
 
 def _default_start_method() -> str:
