@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The main job: train a controller that lowers the jet cylinder's drag.
+# Train a controller that lowers the jet cylinder's drag (or, with a flag, another recipe).
 #
 #   bash scripts/train.sh [extra `gymprecice train` options]     # the training case, ~15 min on 2 cores
 #   bash scripts/train.sh --ppo [extra options]                   # the same with PPO, 8,000 actions
