@@ -74,6 +74,10 @@ def test_a_search_killed_mid_trial_resumes_and_loses_no_trial(tmp_path):
     summary = json.loads((tmp_path / "tune" / "tune.json").read_text())
     assert summary["trials"] == {"complete": 1, "pruned": 0, "failed": 0}
     assert summary["best_trial"] == 1  # the retry of trial 0, which the kill left running
+    # what the search cost: the killed trial up to when the resumed search found it dead,
+    # and its retry
+    assert set(summary["trial_seconds"]) == {"0", "1"}
+    assert all(seconds > 0 for seconds in summary["trial_seconds"].values())
     best = (tmp_path / "tune" / "best_hyperparams.yml").read_text()
     assert "gymprecice/Quickstart-v0:" in best and "learning_rate" in best
     # the file is one train --hyperparams reads

@@ -496,6 +496,8 @@ def _report(study: Any, args: argparse.Namespace, env: LabEnv, out: Path, name: 
         "best_hyperparams": params,
         "trials": {"complete": len(complete), "pruned": len(pruned), "failed": len(failed)},
         "failures": {str(t.number): t.user_attrs["failure"] for t in failed},
+        # what the search cost: each trial's wall-clock, finished or not
+        "trial_seconds": {str(t.number): _seconds(t) for t in study.get_trials(deepcopy=False)},
     }
     (out / "tune.json").write_text(json.dumps(summary, indent=2) + "\n")
     figures = _figures(study, out)
@@ -506,6 +508,14 @@ def _report(study: Any, args: argparse.Namespace, env: LabEnv, out: Path, name: 
         f"--hyperparams {best_file}`), tune.json{figures}"
     )
     return 0
+
+
+def _seconds(trial: Any) -> float | None:
+    """A trial's wall-clock (s) from its start to its end; ``None`` for one still running
+    or waiting (a killed trial ends when the next opening of the study finds it dead)."""
+    if trial.datetime_start is None or trial.datetime_complete is None:
+        return None
+    return round((trial.datetime_complete - trial.datetime_start).total_seconds(), 1)
 
 
 def _figures(study: Any, out: Path) -> str:
