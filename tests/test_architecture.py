@@ -247,6 +247,72 @@ def test_the_plugin_surface_check_can_fail(tmp_path):
     ]
 
 
+# -- the cases keep their physics: the tutorials import nothing of the lab ------------------
+
+#: The distribution whose source holds the cases, and the one it must not reach: the
+#: lab's commands run any registered env, and a case names what the lab needs in its card
+#: (a feedback law, its starts) rather than calling the lab itself.
+TUTORIALS = ROOT / "packages" / "gymprecice-tutorials" / "src"
+LAB = "gymprecice_lab"
+
+
+def _imports_of(package: str, src: Path, root: Path = ROOT) -> list[str]:
+    """Every import of ``package`` or its modules, anywhere in a module under ``src`` (at
+    its top or inside a function; ``importlib.import_module("...")`` and ``__import__``
+    with a literal name too), said with file and line."""
+    found = []
+    for path in sorted(src.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            elif (
+                isinstance(node, ast.Call)
+                and (getattr(node.func, "attr", None) or getattr(node.func, "id", None))
+                in {"import_module", "__import__"}
+                and node.args
+                and isinstance(node.args[0], ast.Constant)
+                and isinstance(node.args[0].value, str)
+            ):
+                names = [node.args[0].value]
+            else:
+                continue
+            for name in names:
+                if name.split(".")[0] == package:
+                    found.append(f"{path.relative_to(root)}:{node.lineno} imports {name}")
+    return found
+
+
+def test_the_tutorials_import_nothing_of_the_lab():
+    """The cases hold their physics (an env, its case, its feedback law); running,
+    sweeping, comparing and plotting any env is the lab's (``gymprecice sweep``,
+    ``evaluate``, ...). A command a case still offers (``python -m
+    gymprecice_tutorials.heated_plate.pid``) runs the lab's commands through the
+    ``gymprecice`` command line, never by importing the lab."""
+    found = _imports_of(LAB, TUTORIALS)
+    assert not found, f"gymprecice_tutorials must not import {LAB}: " + "; ".join(found)
+
+
+def test_the_lab_import_check_can_fail(tmp_path):
+    src = tmp_path / "src" / "cases"
+    src.mkdir(parents=True)
+    (src / "case.py").write_text(
+        "import importlib\n"
+        "import gymprecice_lab_extra\n"
+        "from gymprecice.cli import main\n"
+        "def run():\n"
+        "    from gymprecice_lab.rollouts import sweep\n"
+        "    import gymprecice_lab\n"
+        "    return importlib.import_module('gymprecice_lab.policies')\n"
+    )
+    assert _imports_of(LAB, tmp_path / "src", tmp_path) == [
+        "src/cases/case.py:5 imports gymprecice_lab.rollouts",
+        "src/cases/case.py:6 imports gymprecice_lab",
+        "src/cases/case.py:7 imports gymprecice_lab.policies",
+    ]
+
+
 # -- the old module paths: each one is its new home, the same module object ----------------
 
 #: Core's flat modules before the wings, each with its home now (docs/architecture.md).

@@ -153,7 +153,8 @@ def check_grids(args: argparse.Namespace, env: LabEnv) -> None:
     """The sweep's grids, checked now rather than after every seed has trained."""
     from gymprecice_lab.rollouts.sweep import parse_grid
 
-    parse_grid(args.amplitudes, "amplitudes")
+    if args.amplitudes.strip():  # empty: no sinusoids
+        parse_grid(args.amplitudes, "amplitudes")
     if not 0.0 <= args.centre <= 1.0:
         raise BenchmarkError(f"--centre is a fraction of the action box, 0 to 1; got {args.centre}")
     if any(f <= 0 for f in parse_grid(args.frequencies, "frequencies")):
