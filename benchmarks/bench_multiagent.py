@@ -8,8 +8,8 @@ process) with
   PettingZoo ``ParallelEnv``), each jet one agent, given the same action,
 
 episodes interleaved, and prints side by side the median wall time of one step of each,
-and the multi-agent layer's own time per step: what the ``ParallelEnv`` adds around its
-engine (checking and joining the action dict, splitting per agent in every window,
+and the multi-agent layer's own time per step: what the ``ParallelEnv`` adds to the
+episode runner (checking and joining the action dict, splitting per agent in every window,
 checking the observation and reward dicts, building the five result dicts), measured
 directly rather than as the difference of two noisy step times. It is given in
 microseconds and as a fraction of the multi-agent step. Target: < 1 % of a step.
@@ -95,40 +95,41 @@ def _wrapper_cost(repeat: int = 20000) -> float:
     return max(0.0, best[1] - best[0])
 
 
+#: each answer of the env's view to the runner, and the user's method it asks
+ANSWERS = {
+    "_get_action": "agent_action",
+    "_get_observation": "observations",
+    "_get_reward": "rewards",
+    "_get_terminated": "terminations",
+}
+
+
 def _layer_clock(env: TwoJetsEnv) -> _Clock:
-    """Time the engine's step and every user method, on this env only."""
+    """Time the runner's step, the view's answers and the user's methods, on this env only."""
     clock = _Clock()
-    engine = env._engine
-    clock.wrap(engine, "step")  # the Adapter's whole step, user methods included
-    # the shims around the user's methods (layer code + the user's code inside them)
-    for name in ("_agent_writes", "_check_observations", "_checked_rewards"):
-        clock.wrap(env, name)
-    clock.wrap(engine, "_get_terminated")
-    # the user's own methods (not the layer)
-    for name in ("_get_agent_action", "_get_observations", "_get_rewards", "_get_terminations"):
-        clock.wrap(env, name)
+    clock.wrap(env._gymprecice, "step")  # the runner's whole step, user methods included
+    view = env._view
+    for answer, method in ANSWERS.items():
+        # the view's answers (layer code + the user's code inside them), looked up by the
+        # runner on each call; the user's own methods, as the view holds them
+        clock.wrap(view, answer)
+        clock.wrap(view.methods, method)
     return clock
 
 
 def _layer_seconds(outer: float, t: dict[str, float], calls: dict[str, int], cost: float) -> float:
     """The multi-agent layer's own seconds in one step (see the module docstring).
 
-    Around the engine: ``outer - engine step``. Inside it, the shims minus the user code
-    they call: ``_agent_writes - _get_agent_action`` (split, per-agent dicts, foreign-key
-    check), ``_check_observations`` and ``_checked_rewards`` (all layer),
-    ``_get_terminated - _get_terminations``. ``_get_observations``/``_get_rewards`` are
-    called from the engine's shims, whose remaining few lines count with the engine. The
-    timers' own cost that falls in these differences (one per user call timed inside a
-    shim, one for the engine's step) is taken out.
+    Around the runner: ``outer - runner step``. Inside it, each of the view's answers minus
+    the user code it calls: ``_get_action - agent_action`` (split, per-agent dicts,
+    foreign-key check), ``_get_observation - observations`` and ``_get_reward - rewards``
+    (the dicts' checks), ``_get_terminated - terminations``. The timers' own cost that
+    falls in these differences (one per user call, each timed inside an answer, and one
+    for the runner's step) is taken out.
     """
     around = outer - t["step"]
-    inside = (
-        (t["_agent_writes"] - t["_get_agent_action"])
-        + t["_check_observations"]
-        + t["_checked_rewards"]
-        + (t["_get_terminated"] - t["_get_terminations"])
-    )
-    timers = calls["_get_agent_action"] + calls["_get_terminations"] + calls["step"]
+    inside = sum(t[answer] - t[method] for answer, method in ANSWERS.items())
+    timers = sum(calls[method] for method in ANSWERS.values()) + calls["step"]
     return around + inside - timers * cost
 
 

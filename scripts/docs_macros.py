@@ -4,9 +4,10 @@ mkdocs-macros (``plugins: macros`` in mkdocs.yml) calls :func:`define_env` once 
 A page that sets ``render_macros: true`` in its front matter can then write, instead of a
 number typed by hand::
 
-    {{ shipped["jet-cylinder-fast"].training }}      1 h 14 min
+    {{ cost("perpendicular-flap-fast") }}            1 h 1 min
     {{ shipped["perpendicular-flap-fast"].means.mean_mean_tip_displacement | round(4) }}
     {{ score("jet-cylinder-fast", "SAC") }}          88.9 % [87.2 %, 92.7 %]
+    {{ seed_means("two-flaps-fast", "SAC, shared policy") }}
     {{ time_to_floor("sac-overlap", 0.95).median }}  11 min 50 s
     {{ setup.fresh }}                                7 min 40 s
 
@@ -22,12 +23,16 @@ The figures come from:
 
 Rerunning one of those commands and copying its file over the old one updates every page
 that quotes it; no page holds the number itself. A name that is not there fails the
-build (``on_undefined: strict``), naming the page.
+build (``on_undefined: strict``), naming the page. :func:`headline_figures` lists the
+figures a page must quote, never type, and :func:`typed_figures` finds them typed by hand
+in a page's source (tests/test_docs_figures.py runs it on every page and the README).
 
-Two more things are read, not written: the version every page shows in its footer
+Three more things are read, not written: the version every page shows in its footer
 (``{{ version }}``: gymprecice-core's, from its installed metadata, else its
-pyproject.toml), and the command reference (``{{ command_reference() }}``), written from
-the ``gymprecice`` command line's own parsers by scripts/docs_commands.py.
+pyproject.toml), the command reference (``{{ command_reference() }}``), written from
+the ``gymprecice`` command line's own parsers by scripts/docs_commands.py, and the
+registered environments' facts (``{{ env_table("gymprecice/Quickstart-v0") }}``: each
+one's lab card and spaces, for the gallery).
 """
 
 from __future__ import annotations
@@ -38,7 +43,7 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
@@ -77,10 +82,10 @@ def thousands(n: float) -> str:
     return f"{round(n):,}"
 
 
-def _write(value: float, how: str) -> str:
+def _write(value: float, how: str, units: bool = True) -> str:
     if how == "percent":
         return f"{100 * value:.1f} %"
-    return how.format(value)
+    return how.format(value) if units else how.split(" ", 1)[0].format(value)
 
 
 def _load(path: Path) -> Any:
@@ -119,17 +124,28 @@ def shipped(policies: Path = POLICIES) -> dict[str, dict[str, Any]]:
     }
 
 
-def score(env: str, controller: str, results: Path = RESULTS) -> str:
-    """A benchmarked controller's headline figure with its interval: ``88.9 % [87.2 %, 92.7 %]``."""
+def score(
+    env: str,
+    controller: str,
+    results: Path = RESULTS,
+    units: bool = True,
+    interval: bool = True,
+) -> str:
+    """A benchmarked controller's headline figure with its interval: ``88.9 % [87.2 %, 92.7 %]``.
+
+    ``units=False`` leaves the unit out (a table whose header names it):
+    ``0.0350 [0.0306, 0.0397]``; a percentage keeps its ``%``. ``interval=False`` gives
+    the figure alone: ``88.9 %``."""
     metric, statistic, how = HEADLINES[env]
     data = _load(results / f"benchmark-{env}.json")
     for entry in data["controllers"]:
         # a baseline by its kind ("best sinusoid") or its whole label ("best sinusoid: sine-...")
         if entry["label"] == controller or entry["label"].startswith(f"{controller}: "):
             stat = entry["metrics"][metric][statistic]
-            text = _write(stat["value"], how)
-            if entry["runs"] > 1:
-                text += f" [{_write(stat['low'], how)}, {_write(stat['high'], how)}]"
+            text = _write(stat["value"], how, units)
+            if entry["runs"] > 1 and interval:
+                low, high = _write(stat["low"], how, units), _write(stat["high"], how, units)
+                text += f" [{low}, {high}]"
             return text
     labels = [entry["label"] for entry in data["controllers"]]
     raise KeyError(f"docs/results/benchmark-{env}.json has no controller {controller!r}: {labels}")
@@ -151,8 +167,9 @@ def seed_means(env: str, controller: str, results: Path = RESULTS) -> str:
     raise KeyError(f"docs/results/benchmark-{env}.json has no controller {controller!r}")
 
 
-def time_to_floor(recipe: str, fraction: float, results: Path = RESULTS) -> dict[str, str]:
-    """The median time to a fraction of the drag floor: ``median``, ``low``, ``high``, ``reached``."""
+def time_to_floor(recipe: str, fraction: float, results: Path = RESULTS) -> dict[str, Any]:
+    """The median time to a fraction of the drag floor: ``median``, ``low``, ``high``,
+    ``reached``, and ``seeds``, each seed's time in seed order (``not reached``)."""
     data = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")
     entry = data["summary"][f"{fraction:g}"]
     reached = entry["runs"] - entry.get("not_reached", 0)
@@ -161,7 +178,154 @@ def time_to_floor(recipe: str, fraction: float, results: Path = RESULTS) -> dict
         "low": clock(entry["low"]),
         "high": clock(entry["high"]),
         "reached": f"{reached} of {entry['runs']}",
+        "seeds": [clock(seconds) for seconds in entry["seconds"]],
     }
+
+
+def cost(name: str, policies: Path = POLICIES) -> str:
+    """What a recorded training run took on the wall-clock: the run of the shipped policy
+    ``name`` (its ``policy.json``): ``cost("perpendicular-flap-fast")`` is ``1 h 1 min``,
+    PPO for 20,000 actions on two environments, the command of
+    ``bash scripts/train.sh --flap``."""
+    path = policies / name / "policy.json"
+    if not path.is_file():
+        names = sorted(p.parent.name for p in policies.glob("*/policy.json"))
+        raise KeyError(f"no recorded training run {name!r}: the shipped policies are {names}")
+    return clock(_load(path)["training"]["wall_clock_seconds"])
+
+
+# -- the figures a page must quote, never type -------------------------------------------
+
+
+class Figure(NamedTuple):
+    """A headline figure of a result file, as pages show it, and how to quote it (a named
+    tuple: mkdocs-macros loads this module without a name in ``sys.modules``, which a
+    dataclass needs)."""
+
+    #: the figure as the macro writes it: ``88.9 % [87.2 %, 92.7 %]``
+    text: str
+    #: the file that holds it, from the repository's root
+    source: str
+    #: the macro that writes it: ``score("jet-cylinder-fast", "SAC")``
+    macro: str
+    #: the ways a page could type it by hand
+    pattern: re.Pattern[str]
+
+
+_UNITS = {"%": r"\s?%", "m": r"\s?m(?![\w²³/])", "K": r"\s?K(?!\w)"}
+#: the spans a page quotes through: ``{{ ... }}`` and ``{% ... %}``
+_MACRO = re.compile(r"\{\{.*?\}\}|\{%.*?%\}", re.S)
+#: an interval as pages write one: ``[0.281, 0.329]``, ``[87.2 %, 92.7 %]``
+_INTERVAL = re.compile(r"\[\s*[-\u2212]?\d[^\[\]\n]*?,[^\[\]\n]*\]")
+
+
+def _number(text: str) -> str:
+    """``text`` (a number) as a pattern that finds it alone, not as a part of a longer
+    number: 0.306 is not found in 0.3061 or 10.306."""
+    return rf"(?<![\d.]){re.escape(text)}(?!\d|\.\d)"
+
+
+def _significant(number: str) -> int:
+    """The significant digits of a written number: 3 for ``0.0350``, 1 for ``0.1``."""
+    return len(re.sub(r"\D", "", number).lstrip("0"))
+
+
+def _clock_pattern(text: str) -> re.Pattern[str]:
+    """A duration as typed, not as part of a longer one (``1 h 14 min`` is not in
+    ``1 h 14 min 13 s``, ``14 min 05 s`` not in ``1 h 14 min 05 s``)."""
+    return re.compile(rf"(?<![\d.,])(?<!h )(?<!min ){re.escape(text)}(?!\s?\d)")
+
+
+def _score_figures(env: str, entry: dict[str, Any], results: Path, source: str) -> list[Figure]:
+    """A controller's headline: its value and interval, with or without units, and its
+    value with its unit where it has three significant digits or more (fewer, as
+    ``0.1 %``, is too common a number to tell apart)."""
+    metric, statistic, how = HEADLINES[env]
+    stat = entry["metrics"][metric][statistic]
+    unit = "%" if how == "percent" else how.rsplit(" ", 1)[1]
+    number = [
+        _write(stat[k], how, units=False).removesuffix(" %") for k in ("value", "low", "high")
+    ]
+    with_unit = rf"(?:{_UNITS[unit]})?"
+    # a baseline by its kind: "best sinusoid", not "best sinusoid: sine-c0.5-a1-f1.2"
+    label = entry["label"].split(": ", 1)[0]
+    macro = f'score("{env}", "{label}")'
+    text = score(env, entry["label"], results)
+    patterns = []
+    if entry["runs"] > 1:
+        value, low, high = (_number(n) for n in number)
+        patterns.append(rf"{value}{with_unit}\**\s*\[\s*{low}{with_unit},\s*{high}{with_unit}\s*\]")
+    if _significant(number[0]) >= 3:
+        # the value alone; typed_figures skips it inside another figure's interval
+        patterns.append(rf"(?P<lone>{_number(number[0])}{_UNITS[unit]})")
+    return [Figure(text, source, macro, re.compile("|".join(patterns)))] if patterns else []
+
+
+def headline_figures(results: Path = RESULTS, policies: Path = POLICIES) -> list[Figure]:
+    """Every headline figure of the result files: each benchmarked controller's score (and
+    each seed's, where the file keeps them), the times to the drag floor, the shipped
+    policies' training times and the set-up's total times. A duration is one only when it
+    has two parts (``11 min 50 s``): ``16 s`` alone is too common to tell apart."""
+    figures: list[Figure] = []
+
+    def name(path: Path) -> str:
+        return str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
+
+    for env in HEADLINES:
+        path = results / f"benchmark-{env}.json"
+        metric, _, how = HEADLINES[env]
+        for entry in _load(path)["controllers"]:
+            figures += _score_figures(env, entry, results, name(path))
+            if entry["runs"] > 1 and "scores" in entry["metrics"][metric]:
+                # each seed's mean, in seed order: "0.230, 0.230, 0.243, 0.307 and 0.252 K"
+                text = seed_means(env, entry["label"], results)
+                unit = "%" if how == "percent" else how.rsplit(" ", 1)[1]
+                first, rest = text.removesuffix(f" {unit}").split(", ", 1)
+                pattern = re.compile(f"{_number(first)}, {re.escape(rest)}(?:{_UNITS[unit]})?")
+                macro = f'seed_means("{env}", "{entry["label"]}")'
+                figures.append(Figure(text, name(path), macro, pattern))
+
+    def durations(source: Path, quoted: dict[str, str]) -> None:
+        """The durations of ``source``, by the macro that writes each."""
+        for macro, text in quoted.items():
+            if text.count(" ") >= 3:  # two parts: "9 min 57 s", "1 h 1 min"
+                figures.append(Figure(text, name(source), macro, _clock_pattern(text)))
+
+    for path in sorted(results.glob("time-to-floor-jet-cylinder-fast-*.json")):
+        recipe = path.stem.removeprefix("time-to-floor-jet-cylinder-fast-")
+        for fraction in _load(path)["summary"]:
+            summary = time_to_floor(recipe, float(fraction), results)
+            macro = f'time_to_floor("{recipe}", {fraction})'
+            durations(path, {f"{macro}.{key}": summary[key] for key in ("median", "low", "high")})
+    for path in sorted(policies.glob("*/policy.json")):
+        durations(path, {f'cost("{path.parent.name}")': cost(path.parent.name, policies)})
+    setup = setup_figures(results)
+    # the totals; a step's time alone ("1 min 20 s") is as common as a number gets
+    keys = ("fresh", "without_debian", "ci", "ci_second")
+    durations(results / "setup.json", {f"setup.{key}": setup[key] for key in keys})
+    return figures
+
+
+def typed_figures(text: str, figures: list[Figure]) -> list[tuple[int, list[Figure], str]]:
+    """``(line, figures, what is written)`` for each figure that ``text`` (a page's
+    Markdown) types by hand, outside ``{{ ... }}`` and ``{% ... %}``: ``figures`` are the
+    ones it could be (``11 min 50 s`` is two of the files' figures)."""
+    masked = _MACRO.sub(lambda m: re.sub(r"[^\n]", " ", m.group(0)), text)
+    # the bounds of intervals: a value alone inside one is another figure's bound
+    bounds = [m.span() for m in _INTERVAL.finditer(masked)]
+    found: dict[tuple[int, int], list[Figure]] = {}
+    for figure in figures:
+        for match in figure.pattern.finditer(masked):
+            start = match.start()
+            if match.groupdict().get("lone") and any(a < start < b for a, b in bounds):
+                continue
+            found.setdefault(match.span(), []).append(figure)
+    # a value alone inside a longer match ("0.306 K" of "0.306 K [0.281, 0.329]") is that one
+    spans = [s for s in found if not any(o != s and o[0] <= s[0] and s[1] <= o[1] for o in found)]
+    return [
+        (masked.count("\n", 0, span[0]) + 1, found[span], masked[span[0] : span[1]])
+        for span in sorted(spans)
+    ]
 
 
 #: the results table's rows: the task and objective, the learnt controllers (prefix,
@@ -241,6 +405,85 @@ def setup_figures(results: Path = RESULTS) -> dict[str, Any]:
     }
 
 
+# -- the environments, from their registration --------------------------------------------
+
+
+def _box(space: Any, unit: str = "") -> str:
+    """``(151,)`` float32, unbounded; ``(1,)`` in [-2.5e-05, 2.5e-05] m³/s."""
+    import numpy as np
+
+    shape = f"`{tuple(space.shape)}` {np.dtype(space.dtype).name}"
+    low, high = np.unique(space.low), np.unique(space.high)
+    if np.all(np.isinf(low)) and np.all(np.isinf(high)):
+        return f"{shape}, unbounded"
+    if len(low) == 1 and len(high) == 1:
+        bounds = f"in [{low[0]:g}, {high[0]:g}]" + (f" {unit}" if unit else "")
+        return f"{shape} {bounds}"
+    return f"{shape}, bounds per entry"
+
+
+def env_facts(env_id: str) -> dict[str, str]:
+    """What the registration of ``env_id`` says of it: its lab card's fields and its
+    spaces, read from an instance that starts nothing (the test double where the card
+    offers one; an env starts its solvers in ``reset``, never when it is made)."""
+    import tempfile
+
+    import gymnasium
+
+    import gymprecice  # noqa: F401  (registers the ids)
+    from gymprecice.plugin.card import card_for
+
+    card = card_for(env_id)
+    with tempfile.TemporaryDirectory() as run_root:
+        kwargs = {"double": True} if card.double else {}
+        env = gymnasium.make(env_id, run_root=run_root, disable_env_checker=True, **kwargs)
+        try:
+            observation, action = env.observation_space, env.action_space
+        finally:
+            env.close()
+    if card.objective is None:  # the negated mean reward, lower is better
+        objective = "the mean reward per action, higher is better"
+    else:
+        better = "higher" if card.maximize else "lower"
+        objective = f'`{card.objective}` (in `info["metrics"]`), {better} is better'
+    if card.reference is not None:
+        objective += f"; also the share of the {card.reference.label} it takes"
+    return {
+        "name": f"`{card.name}`" if card.name else "",
+        "description": card.description,
+        "observation": _box(observation),
+        "action": _box(action, card.action_unit),
+        "objective": objective,
+        "held_out_starts": "yes" if card.held_out_starts else "no: the starts are seeds",
+        "double": "yes (`--double`)" if card.double else "no",
+    }
+
+
+#: env_table's rows: the label and the key of env_facts
+_FACT_ROWS = (
+    ("command-line name", "name"),
+    ("what it is", "description"),
+    ("observation", "observation"),
+    ("action", "action"),
+    ("ranked on", "objective"),
+    ("held-out starts", "held_out_starts"),
+    ("test double", "double"),
+)
+
+
+def env_table(*env_ids: str) -> str:
+    """A Markdown table of the registered environments ``env_ids``, one column each: the
+    facts of :func:`env_facts`, so that a page cannot drift from the registration."""
+    facts = [env_facts(env_id) for env_id in env_ids]
+    ids = [env_id.split("/", 1)[-1] for env_id in env_ids]
+    rows = ["| | " + " | ".join(f"`{i}`" for i in ids) + " |"]
+    rows.append("| --- |" + " --- |" * len(ids))
+    for label, key in _FACT_ROWS:
+        cells = [fact[key].replace("|", "\\|") for fact in facts]
+        rows.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(rows)
+
+
 def version() -> str:
     """gymprecice-core's version: its installed metadata, else its pyproject.toml."""
     try:
@@ -274,5 +517,7 @@ def define_env(env: Any) -> None:
     env.macro(results_table)
     env.macro(seed_means)
     env.macro(time_to_floor)
+    env.macro(cost)
+    env.macro(env_table)
     env.filter(clock)
     env.filter(thousands)

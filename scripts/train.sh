@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The main job: train a controller that lowers the jet cylinder's drag.
+# Train a controller that lowers the jet cylinder's drag (or, with a flag, another recipe).
 #
 #   bash scripts/train.sh [extra `gymprecice train` options]     # the training case, ~15 min on 2 cores
 #   bash scripts/train.sh --ppo [extra options]                   # the same with PPO, 8,000 actions
@@ -44,6 +44,8 @@
 #   .venv/bin/python -m gymprecice_tutorials.heated_plate.pid --sweep-on fast \
 #       --kp 2,3,4,6 --ki 25,50,75,100,150 --kd 0,1 --seeds 0,1,2 --constants 315 \
 #       --policy runs/heated-plate-fast/train      # against the tuned PI, docs/training.md
+#   (it runs and prints the lab's commands: gymprecice sweep --starts validation to tune
+#   the PID, gymprecice sweep / evaluate on the held-out starts, compare, plot)
 #
 # Sets up the machine like the tests do, then checks it with `gymprecice doctor`: training
 # couples to real OpenFOAM through preCICE, so without preCICE (and the OpenFOAM-preCICE

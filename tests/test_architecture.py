@@ -247,6 +247,72 @@ def test_the_plugin_surface_check_can_fail(tmp_path):
     ]
 
 
+# -- the cases keep their physics: the tutorials import nothing of the lab ------------------
+
+#: The distribution whose source holds the cases, and the one it must not reach: the
+#: lab's commands run any registered env, and a case names what the lab needs in its card
+#: (a feedback law, its starts) rather than calling the lab itself.
+TUTORIALS = ROOT / "packages" / "gymprecice-tutorials" / "src"
+LAB = "gymprecice_lab"
+
+
+def _imports_of(package: str, src: Path, root: Path = ROOT) -> list[str]:
+    """Every import of ``package`` or its modules, anywhere in a module under ``src`` (at
+    its top or inside a function; ``importlib.import_module("...")`` and ``__import__``
+    with a literal name too), said with file and line."""
+    found = []
+    for path in sorted(src.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            elif (
+                isinstance(node, ast.Call)
+                and (getattr(node.func, "attr", None) or getattr(node.func, "id", None))
+                in {"import_module", "__import__"}
+                and node.args
+                and isinstance(node.args[0], ast.Constant)
+                and isinstance(node.args[0].value, str)
+            ):
+                names = [node.args[0].value]
+            else:
+                continue
+            for name in names:
+                if name.split(".")[0] == package:
+                    found.append(f"{path.relative_to(root)}:{node.lineno} imports {name}")
+    return found
+
+
+def test_the_tutorials_import_nothing_of_the_lab():
+    """The cases hold their physics (an env, its case, its feedback law); running,
+    sweeping, comparing and plotting any env is the lab's (``gymprecice sweep``,
+    ``evaluate``, ...). A command a case still offers (``python -m
+    gymprecice_tutorials.heated_plate.pid``) runs the lab's commands through the
+    ``gymprecice`` command line, never by importing the lab."""
+    found = _imports_of(LAB, TUTORIALS)
+    assert not found, f"gymprecice_tutorials must not import {LAB}: " + "; ".join(found)
+
+
+def test_the_lab_import_check_can_fail(tmp_path):
+    src = tmp_path / "src" / "cases"
+    src.mkdir(parents=True)
+    (src / "case.py").write_text(
+        "import importlib\n"
+        "import gymprecice_lab_extra\n"
+        "from gymprecice.cli import main\n"
+        "def run():\n"
+        "    from gymprecice_lab.rollouts import sweep\n"
+        "    import gymprecice_lab\n"
+        "    return importlib.import_module('gymprecice_lab.policies')\n"
+    )
+    assert _imports_of(LAB, tmp_path / "src", tmp_path) == [
+        "src/cases/case.py:5 imports gymprecice_lab.rollouts",
+        "src/cases/case.py:6 imports gymprecice_lab",
+        "src/cases/case.py:7 imports gymprecice_lab.policies",
+    ]
+
+
 # -- the old module paths: each one is its new home, the same module object ----------------
 
 #: Core's flat modules before the wings, each with its home now (docs/architecture.md).
@@ -327,3 +393,78 @@ def test_every_old_module_path_is_its_new_home():
         assert (core / f"{old}.py").is_file() and (core / f"{new.replace('.', '/')}.py").is_file()
         module = importlib.import_module(f"gymprecice.{new}")
         assert importlib.import_module(f"gymprecice.{old}") is module, old
+
+
+# -- the multi-agent env: composed of the episode runner, no reach into other objects --------
+
+#: The multi-agent package, which runs on the Adapter's episode runner by composition.
+MULTIAGENT = ROOT / "packages" / "gymprecice-core" / "src" / "gymprecice" / "multiagent"
+
+
+def _own(node: ast.expr) -> bool:
+    """``self``, ``cls`` or ``super()``: the object whose code this is."""
+    if isinstance(node, ast.Name):
+        return node.id in {"self", "cls"}
+    return (
+        isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "super"
+    )
+
+
+def _private_of_another(node: ast.AST) -> bool:
+    """``other._x``, or ``getattr(other, "_x")`` (``setattr``, ``hasattr``, ``delattr``)."""
+    if isinstance(node, ast.Attribute):
+        return _private(node.attr) and not _own(node.value)
+    if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)):
+        return False
+    if node.func.id not in {"getattr", "setattr", "hasattr", "delattr"} or len(node.args) < 2:
+        return False
+    name = node.args[1]
+    return (
+        isinstance(name, ast.Constant)
+        and isinstance(name.value, str)
+        and _private(name.value)
+        and not _own(node.args[0])
+    )
+
+
+def _reach_ins(src: Path, root: Path = ROOT) -> list[str]:
+    """Every private attribute of another object (``env._engine``, ``getattr(env, "_x")``)
+    and every subclass of ``Adapter``, in the modules under ``src`` (file and line)."""
+    found = []
+    for path in sorted(src.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            where = f"{path.relative_to(root)}:{getattr(node, 'lineno', 0)}"
+            if _private_of_another(node):
+                found.append(f"{where} reaches into {ast.unparse(node)}")
+            elif isinstance(node, ast.ClassDef):
+                for base in node.bases:
+                    name = base.attr if isinstance(base, ast.Attribute) else getattr(base, "id", "")
+                    if name == "Adapter":
+                        found.append(f"{where} subclasses Adapter: {node.name}")
+    return found
+
+
+def test_the_multi_agent_env_is_composed_and_reaches_into_no_other_object():
+    """The multi-agent env hands the episode runner what it needs (a view, the user's
+    methods as callables) instead of being an Adapter or reading another object's
+    private attributes, so either side can change without breaking the other."""
+    found = _reach_ins(MULTIAGENT)
+    assert not found, "pass it explicitly (a callable, a public attribute): " + "; ".join(found)
+
+
+def test_the_reach_in_check_can_fail(tmp_path):
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "env.py").write_text(
+        "from gymprecice.core import Adapter\n"
+        "class Engine(Adapter):\n"
+        "    def step(self, owner):\n"
+        "        self._fine = super()._also_fine\n"
+        "        owner._slots.clear()\n"
+        "        return getattr(owner, '_who')(), owner.__class__, owner.public\n"
+    )
+    assert _reach_ins(src, tmp_path) == [
+        "src/env.py:2 subclasses Adapter: Engine",
+        "src/env.py:5 reaches into owner._slots",
+        "src/env.py:6 reaches into getattr(owner, '_who')",
+    ]

@@ -3,13 +3,18 @@
 scripts/docs_macros.py reads the shipped policies' ``policy.json``, the benchmarks'
 ``results.json`` and the set-up's timings (docs/results/), and the pages that quote them
 write ``{{ ... }}`` instead of the number. These tests check the reading, that a changed
-result file changes the figure, and that the pages that quote a figure do not also type it.
+result file changes the figure, and that no page types a figure a result file holds:
+every headline figure (each benchmarked controller's score, each seed's where the file
+keeps them, the times to the drag floor, the training runs' costs, the set-up's total
+times) is looked for, written by hand, in every page's source and the README, and found
+ones fail naming the page, the line and the macro that quotes it.
 """
 
 from __future__ import annotations
 
 import importlib.util
 import json
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -30,6 +35,18 @@ def _load_macros():
 
 
 macros = _load_macros()
+
+#: every page whose source could type a figure: the site's pages and the README.
+#: docs/changelog.md is CHANGELOG.md, the record of what each change measured then, and
+#: docs/results/ holds the result files themselves
+SOURCES = [
+    *sorted(
+        str(path.relative_to(ROOT))
+        for path in (ROOT / "docs").rglob("*.md")
+        if path.name != "changelog.md" and "results" not in path.relative_to(ROOT / "docs").parts
+    ),
+    "README.md",
+]
 
 #: the pages that quote the headline figures, and so must never type them
 QUOTING = [
@@ -77,6 +94,7 @@ def test_a_rerun_changes_every_quoted_figure(tmp_path: Path) -> None:
         "low": "9 min 57 s",
         "high": "not reached",
         "reached": "3 of 5",
+        "seeds": ["9 min 57 s", "11 min 46 s", "11 min 50 s", "not reached", "not reached"],
     }
 
 
@@ -126,3 +144,121 @@ def test_the_results_table_follows_a_changed_result_file(tmp_path: Path) -> None
     path.write_text(json.dumps(data))
     assert "SAC 0.123 K" in macros.results_table(tmp_path / "results")
     assert "SAC 0.123 K" not in macros.results_table()
+
+
+def _readme_results_table() -> tuple[str, str]:
+    spec = importlib.util.spec_from_file_location(
+        "readme_results", ROOT / "scripts" / "readme_results.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.START, module.END
+
+
+def typed(page: str, text: str, figures: list) -> list[str]:
+    """``PAGE:LINE: ...`` for each figure of ``figures`` that ``text`` types by hand. The
+    README's results table is written by scripts/readme_results.py from the result
+    files (and checked above), so it is left out."""
+    if page == "README.md":
+        start, end = _readme_results_table()
+        head, rest = text.split(start, 1)
+        table, tail = rest.split(end, 1)
+        text = head + start + re.sub(r"[^\n]", " ", table) + end + tail
+    return [
+        f"{page}:{line}: {written!r} is {found[0].text} of {found[0].source}: write "
+        + " or ".join(f"{{{{ {figure.macro} }}}}" for figure in found)
+        + " instead"
+        for line, found, written in macros.typed_figures(text, figures)
+    ]
+
+
+@pytest.fixture(scope="module")
+def figures() -> list:
+    return macros.headline_figures()
+
+
+def check_page(page: str, text: str, figures: list) -> None:
+    """Fail naming each line of ``page`` that types a figure of a result file."""
+    found = typed(page, text, figures)
+    assert not found, "a figure typed by hand, quote it (scripts/docs_macros.py):\n" + (
+        "\n".join(found)
+    )
+
+
+@pytest.mark.parametrize("page", SOURCES)
+def test_no_page_types_a_figure_that_a_result_file_holds(page: str, figures: list) -> None:
+    check_page(page, (ROOT / page).read_text(), figures)
+
+
+def test_every_result_file_has_its_headline_figures_looked_for(figures: list) -> None:
+    sources = {figure.source for figure in figures}
+    for path in sorted(macros.RESULTS.glob("*.json")):
+        name = str(path.relative_to(ROOT))
+        if path.name.startswith(("benchmark-", "time-to-floor-", "setup")):
+            assert name in sources, f"{name}: no headline figure is looked for"
+    for path in sorted(macros.POLICIES.glob("*/policy.json")):
+        assert str(path.relative_to(ROOT)) in sources, path
+
+
+#: a page that types figures of the result files by hand, and quotes others
+HAND_WRITTEN = """---
+render_macros: true
+---
+
+SAC takes 88.9 % [87.2 %, 92.7 %] of the floor, PPO **89.7 [77.9, 95.2]**.
+The flap's policy trained in 1 h 1 min; seeds 0.230, 0.230, 0.243, 0.307 and 0.252 K.
+The heated plate's PID: 0.298 K. 95 % in a median of 11 min 50 s.
+Quoted, not typed: {{ score("jet-cylinder-fast", "SAC") }}, {{ cost("two-flaps-fast") }}.
+Not these figures: 83.1 % [80.6 %, 88.4 %] (another interval's bound), 0.2985,
+1 h 14 min 13 s, 0.1 % and 16 s (too common to tell apart).
+"""
+
+
+def test_a_figure_typed_by_hand_fails_naming_the_page_and_the_line(figures: list) -> None:
+    found = typed("docs/example.md", HAND_WRITTEN, figures)
+    where = [line.split(": ", 1)[0] for line in found]
+    assert (
+        where == ["docs/example.md:5"] * 2 + ["docs/example.md:6"] * 2 + ["docs/example.md:7"] * 2
+    ), found
+    assert found[0] == (
+        "docs/example.md:5: '88.9 % [87.2 %, 92.7 %]' is 88.9 % [87.2 %, 92.7 %] of "
+        "docs/results/benchmark-jet-cylinder-fast.json: write "
+        '{{ score("jet-cylinder-fast", "SAC") }} instead'
+    )
+    assert 'cost("perpendicular-flap-fast")' in found[2]
+    assert 'seed_means("heated-plate-fast-integral", "SAC")' in found[3]
+    assert 'score("heated-plate-fast", "best PID")' in found[4]
+    assert 'time_to_floor("sac-overlap", 0.95).median' in found[5]
+    # the check every page goes through fails on it, naming the page and the line
+    with pytest.raises(AssertionError, match=r"docs/example\.md:5: '88\.9 %"):
+        check_page("docs/example.md", HAND_WRITTEN, figures)
+
+
+def test_a_hand_typed_figure_in_the_readme_is_found_outside_its_table(figures: list) -> None:
+    text = (ROOT / "README.md").read_text()
+    assert not typed("README.md", text, figures)
+    start, _ = _readme_results_table()
+    tampered = text.replace(start, "SAC takes 88.9 % of the floor.\n\n" + start, 1)
+    (found,) = typed("README.md", tampered, figures)
+    assert "'88.9 %'" in found and 'score("jet-cylinder-fast", "SAC")' in found
+
+
+def test_the_figures_looked_for_follow_the_result_files(tmp_path: Path) -> None:
+    shutil.copytree(macros.RESULTS, tmp_path / "results")
+    path = tmp_path / "results" / "benchmark-jet-cylinder-fast.json"
+    data = json.loads(path.read_text())
+    sac = next(c for c in data["controllers"] if c["label"] == "SAC")
+    sac["metrics"]["settled_floor_fraction"]["median"] = {"value": 0.9, "low": 0.8, "high": 1.0}
+    path.write_text(json.dumps(data))
+    figures = macros.headline_figures(tmp_path / "results")
+    assert typed("page.md", "SAC: 90.0 % [80.0 %, 100.0 %].", figures)
+    assert not typed("page.md", "SAC: 88.9 % [87.2 %, 92.7 %].", figures)
+
+
+def test_a_training_cost_is_read_from_the_policy_that_recorded_it() -> None:
+    policy = json.loads((macros.POLICIES / "perpendicular-flap-fast" / "policy.json").read_text())
+    assert macros.cost("perpendicular-flap-fast") == macros.clock(
+        policy["training"]["wall_clock_seconds"]
+    )
+    with pytest.raises(KeyError, match="no recorded training run 'flap'"):
+        macros.cost("flap")

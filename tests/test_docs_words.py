@@ -25,6 +25,7 @@ PAGES = [
     "docs/benchmark.md",
     "docs/benchmarks.md",
     "docs/results-history.md",
+    "docs/gallery.md",
     "docs/cluster.md",
     "docs/validation.md",
     *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs" / "tutorials").glob("*.md")),

@@ -44,7 +44,8 @@ STOP_BOUND_S = 5.0
 _OWNER_HEAD = """
 import json, os, sys, threading, time
 from pathlib import Path
-from gymprecice import owner_watchdog, processes
+from gymprecice import owner_watchdog
+from gymprecice.env import launching
 from gymprecice.processes import PidRegistry, SolverProcess
 from gymprecice.solver import LaunchSpec
 
@@ -145,7 +146,7 @@ def test_the_watchdog_alone_stops_a_launcher_whose_children_have_no_pdeathsig(tm
     owner, report = _owner(
         tmp_path,
         """
-        processes._die_with_parent_hook = lambda: None
+        launching.die_with_parent_hook = lambda: None
         spec = LaunchSpec(["bash", "-c", "sleep 1000 & sleep 1000 & wait"], env_dir)
         proc = SolverProcess.start("s", spec, registry=PidRegistry(env_dir))
         report(watchdog=owner_watchdog.watchdog_pid())

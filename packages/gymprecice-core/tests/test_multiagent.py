@@ -1,7 +1,7 @@
 """The multi-agent env (PettingZoo ParallelEnv) on the preCICE double: API, bad input, semantics.
 
-The env is :class:`gymprecice.testing.two_jets.TwoJetsEnv` on the chaos case (Adapter
-engine, coupling worker, the double, a solver process that fails on request): agent
+The env is :class:`gymprecice.testing.two_jets.TwoJetsEnv` on the chaos case (episode
+runner, coupling worker, the double, a solver process that fails on request): agent
 ``upper`` drives jet1, ``lower`` drives jet2. Episodes are 5 steps of 2 windows.
 """
 
@@ -65,7 +65,7 @@ def _act(env, value=0.3) -> dict:
 
 
 def _processes(env) -> list[int]:
-    session = env._engine._gymprecice.run.session
+    session = env._gymprecice.run.session
     assert session is not None
     return [session.worker.pid, *(s.pid for s in session.solvers)]
 
@@ -185,7 +185,7 @@ def test_when_every_agent_has_terminated_the_simulation_stops(case):
         assert env.step(_act(env))[2] == {"lower": False}
         _, _, terms, truncs, _ = env.step(_act(env))
         assert terms == {"lower": True} and truncs == {"lower": False} and env.agents == []
-        assert env._engine._gymprecice.run.session is None and not any(pid_alive(p) for p in pids)
+        assert env._gymprecice.run.session is None and not any(pid_alive(p) for p in pids)
     finally:
         env.close()
 
@@ -382,7 +382,7 @@ def test_an_observation_that_does_not_fit_its_space_is_refused_and_nothing_runs(
             env.reset(seed=0)
         assert "agent 'upper' an observation of shape (3,)" in str(err.value)
         assert "observation_spaces['upper']" in str(err.value)
-        assert env._engine._gymprecice.run.session is None and env.agents == []
+        assert env._gymprecice.run.session is None and env.agents == []
     finally:
         env.close()
 
@@ -442,7 +442,45 @@ def test_the_divergence_penalty_is_the_env_classs_without_a_configured_one(case)
     _edit(case, lambda c: c["environment"].pop("divergence_penalty"))
     env = _env_with(case, TwoJetsEnv.agent_data, divergence_penalty=-7.0)
     try:
-        assert env._engine.penalty == -7.0
+        assert env._gymprecice.guards.penalty == -7.0
+    finally:
+        env.close()
+
+
+def test_dropping_the_env_ends_its_episode_and_frees_its_index(case):
+    """The env's view holds the env weakly: nothing keeps a dropped env (and its solvers)."""
+    env = TwoJetsEnv(str(case), None)
+    assert env.env_index == 0
+    env.reset(seed=0)
+    pids = _processes(env)
+    assert all(pid_alive(p) for p in pids)
+    del env
+    assert not any(pid_alive(p) for p in pids)
+    again = TwoJetsEnv(str(case), None)
+    try:
+        assert again.env_index == 0  # the dropped env's claim was released
+    finally:
+        again.close()
+
+
+def test_a_subclass_s_own_names_do_not_break_core(case):
+    """Names the multi-agent env once used for itself are the subclass's to use."""
+
+    class Busy(TwoJetsEnv):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self._engine, self._slots, self._held, self._agent_refs = "mine", {}, None, ()
+
+        def _joint(self, *args):  # once methods of the env's machinery
+            raise AssertionError("core called the env's own _joint")
+
+        _layout = _who = _check_observations = _checked_rewards = _agent_writes = _joint
+
+    env = Busy(str(case), 0)
+    try:
+        env.reset(seed=0)
+        *_, infos = env.step(_act(env))
+        assert infos["upper"]["time_window"] == 2 and env._engine == "mine"
     finally:
         env.close()
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice import processes
+from gymprecice.env import launching
 from gymprecice.errors import CaseError, SolverCrashedError, SolverTimeoutError
 from gymprecice.processes import (
     PROCESS_TOKEN_VARIABLE,
@@ -88,10 +88,10 @@ def _wait_for(predicate, timeout: float = 2.0) -> bool:
 def wake_mode(request, monkeypatch):
     """Run a test with pidfds and again with the pipe fallback."""
     if request.param == "pidfd":
-        if not processes._pidfd_available():
+        if not launching._pidfd_available():
             pytest.skip("pidfd_open is not available on this kernel")
     else:
-        monkeypatch.setattr(processes, "_pidfd_checked", False)
+        monkeypatch.setattr(launching, "_pidfd_checked", False)
     return request.param
 
 
@@ -308,13 +308,14 @@ _DYING_ENV = textwrap.dedent(
     """
     import os, sys
     from pathlib import Path
-    from gymprecice import owner_watchdog, processes
+    from gymprecice import owner_watchdog
+    from gymprecice.env import launching
     from gymprecice.processes import PidRegistry, SolverProcess
     from gymprecice.solver import LaunchSpec
 
     # The layers that end the solvers with their owner (PR_SET_PDEATHSIG, the watchdog)
     # fail here, so that what is left is the outer supervisor's to kill.
-    processes._die_with_parent_hook = lambda: None
+    launching.die_with_parent_hook = lambda: None
     env_dir = Path(sys.argv[1])
     spec = LaunchSpec(["bash", "-c", "sleep 1000 & sleep 1000 & wait"], env_dir)
     proc = SolverProcess.start("fluid", spec, registry=PidRegistry(env_dir))

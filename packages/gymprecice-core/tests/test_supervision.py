@@ -31,6 +31,7 @@ import pytest
 from gymprecice import processes
 from gymprecice.core import Adapter
 from gymprecice.coupling import CouplingSession, WorkerProcess
+from gymprecice.env import launching
 from gymprecice.errors import SolverCrashedError, SolverError
 from gymprecice.pidregistry import PidRegistry, kill_recorded_groups
 from gymprecice.processes import SolverProcess
@@ -333,7 +334,7 @@ def test_envs_without_index_do_not_share_a_run_directory(tmp_path):
 
 
 def test_worker_and_solvers_without_pidfds(tmp_path, monkeypatch):
-    monkeypatch.setattr(processes, "_pidfd_checked", False)
+    monkeypatch.setattr(launching, "_pidfd_checked", False)
     monkeypatch.setattr(os, "pidfd_open", None, raising=False)
     env = CylinderEnv(make_case(tmp_path), 0, run_root=tmp_path / "runs")
     env.reset(seed=0)

@@ -138,6 +138,86 @@ def test_an_env_with_a_feedback_law_of_its_own_is_tuned_over_that_laws_grid(
     assert {k: settings[k] for k in point} == point
 
 
+@pytest.mark.timeout(300)
+def test_a_sweep_on_the_validation_starts_tunes_without_a_held_out_start(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """``--starts validation``: every controller from the env's validation starts (those
+    that choose a trained model), none from a held-out one; ``--amplitudes=``: no
+    sinusoids. Such a sweep says so, and ``compare`` refuses it beside held-out runs.
+    Cost: about 10 s (2 controllers x 3 episodes on the lumped-plate double)."""
+    from gymprecice_tutorials.heated_plate.environment import HeatedPlateEnv
+
+    monkeypatch.chdir(tmp_path)
+    argv = ["sweep", "heated-plate", "--double", "--starts", "validation", "--constants", "0"]
+    argv += ["--amplitudes=", "--feedback-grid=kp=3;ki=50;kd=1", "--out", "tune"]
+    assert main(argv) == 0, capsys.readouterr()
+    assert "2 controller(s) x 3 validation start(s)" in capsys.readouterr().out
+    out = tmp_path / "tune"
+    env = HeatedPlateEnv(double=True, run_root=tmp_path / "probe")
+    try:
+        validation, held_out = env.validation_starts, env.held_out_starts
+    finally:
+        env.close()
+    for label in ("uncontrolled", "feedback-pid-kp3-ki50-kd1"):
+        episodes = json.loads((out / label / "summary.json").read_text())["episodes"]
+        assert [e["start_label"] for e in episodes] == list(validation)
+        assert not {e["start_label"] for e in episodes} & set(held_out)
+    summary = json.loads((out / "sweep.json").read_text())
+    assert summary["starts"] == "validation"
+    assert [r["kind"] for r in summary["controllers"]] == ["uncontrolled", "feedback"]
+    assert json.loads((out / "manifest.json").read_text())["settings"]["starts"] == "validation"
+    with pytest.raises(SystemExit, match="ran on the env's validation starts"):
+        main(["compare", "tune"])
+
+
+def test_the_plate_pid_module_runs_the_labs_commands(tmp_path: Path, monkeypatch, capsys) -> None:
+    """``python -m gymprecice_tutorials.heated_plate.pid``, as the docs gave it, runs the
+    lab's commands: a tuning sweep on validation starts, then the held-out sweep of its
+    best point with the constants, one evaluate per policy, compare and plot; each is
+    printed, and each is one the ``gymprecice`` parser takes."""
+    from gymprecice.cli import build_parser
+    from gymprecice.tools import cli
+    from gymprecice_tutorials.heated_plate import pid
+
+    ran: list[list[str]] = []
+
+    def gymprecice(argv: list[str]) -> int:
+        build_parser().parse_args(argv)  # a command the lab's parser takes
+        ran.append(argv)
+        if argv[0] == "sweep" and "validation" in argv:  # the tuning sweep's result
+            best = {"label": "feedback-pid-kp3-ki50-kd1", "kp": 3.0, "ki": 50.0, "kd": 1.0}
+            (tmp_path / "out" / "tune").mkdir(parents=True)
+            (tmp_path / "out" / "tune" / "sweep.json").write_text(
+                json.dumps({"best_feedback": best})
+            )
+        return 0
+
+    monkeypatch.setattr(cli, "main", gymprecice)
+    out = str(tmp_path / "out")
+    argv = ["--sweep-on", "fast", "--kp", "2,3", "--ki", "25,50", "--kd", "0,1"]
+    argv += ["--seeds", "0,1,2", "--constants", "315", "--policy", "runs/plate/sac"]
+    assert pid.main([*argv, "--policy", "shipped", "--solid", "fenics", "--out", out]) == 0
+    fenics = ["--env-kwargs", '{"solid": "fenics"}']
+    tune = ["--starts", "validation", "--episodes", "3", "--constants", "0", "--amplitudes="]
+    tune += ["--feedback-grid=kp=2,3;ki=25,50;kd=0,1", "--out", f"{out}/tune"]
+    held_out = ["--feedback-grid=kp=3;ki=50;kd=1", "--constants", "9", "--amplitudes="]
+    policies = [f"{out}/policy-sac", f"{out}/policy-shipped"]
+    evaluate = ["evaluate", "heated-plate", "--policy"]
+    plot = ["--baseline", f"{out}/sweep/uncontrolled", "--out", f"{out}/plots"]
+    assert ran == [
+        ["sweep", "heated-plate-fast", *tune],
+        ["sweep", "heated-plate", *held_out, "--out", f"{out}/sweep", *fenics],
+        [*evaluate, "runs/plate/sac", "--all-starts", "--out", policies[0], *fenics],
+        [*evaluate, "shipped", "--all-starts", "--out", policies[1], *fenics],
+        ["compare", f"{out}/sweep", *policies, "--out", out],
+        ["plot", f"{out}/sweep/feedback-pid-kp3-ki50-kd1", *policies, *plot],
+    ]
+    printed = [line for line in capsys.readouterr().out.splitlines() if line.startswith("$ ")]
+    assert printed[0].startswith("$ gymprecice sweep heated-plate-fast --starts validation")
+    assert len(printed) == len(ran)
+
+
 @pytest.mark.parametrize(
     ("env", "extra", "message"),
     [

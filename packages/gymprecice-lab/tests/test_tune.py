@@ -74,6 +74,10 @@ def test_a_search_killed_mid_trial_resumes_and_loses_no_trial(tmp_path):
     summary = json.loads((tmp_path / "tune" / "tune.json").read_text())
     assert summary["trials"] == {"complete": 1, "pruned": 0, "failed": 0}
     assert summary["best_trial"] == 1  # the retry of trial 0, which the kill left running
+    # what the search cost: the killed trial up to when the resumed search found it dead,
+    # and its retry
+    assert set(summary["trial_seconds"]) == {"0", "1"}
+    assert all(seconds > 0 for seconds in summary["trial_seconds"].values())
     best = (tmp_path / "tune" / "best_hyperparams.yml").read_text()
     assert "gymprecice/Quickstart-v0:" in best and "learning_rate" in best
     # the file is one train --hyperparams reads
@@ -136,3 +140,27 @@ def test_the_search_space_keeps_unsearched_parameters_at_their_defaults():
     assert params["learning_starts"] == 20  # a fraction of the trial's budget
     ppo = sample(study.ask(), "ppo", 1000, 2, {}, None)
     assert ppo["batch_size"] <= ppo["n_steps"] * 2
+
+
+def test_workers_and_resumed_searches_do_not_propose_the_same_first_trials(tmp_path):
+    """Two ``--n-jobs`` workers opening a study at once, and a search resumed with the
+    same command, get samplers of their own: seeded alike, each proposed the same first
+    trial (a wasted trial per worker)."""
+    from gymprecice_lab.tune import open_study
+
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    settings = {"env_id": "a/A-v0", "algo": "sac", "timesteps": 16, "n_envs": 1, "double": True}
+
+    def first_proposal(worker: int) -> float:
+        study = open_study(url, "s", settings, seed=0, worker=worker)
+        trial = study.ask()
+        value = trial.suggest_float("learning_rate", 1e-4, 3e-3, log=True)
+        study.tell(trial, 0.0)
+        return value
+
+    proposals = [first_proposal(0), first_proposal(1), first_proposal(0)]
+    assert len(set(proposals)) == 3, proposals
+    again = tmp_path / "again"
+    again.mkdir()
+    url = f"sqlite:///{again / 'study.db'}"
+    assert first_proposal(0) == proposals[0]  # the same command on a new study: reproducible

@@ -136,6 +136,28 @@ def test_force_coefficient_layouts(tmp_path):
     assert rows.column("Cd")[0] == 3.1 and rows.column("Cl(f)")[0] == 0.6
 
 
+def test_read_force_coeffs_joins_a_runs_restarts_the_later_run_winning(tmp_path):
+    """A finished run's whole history: every start-time directory in time order; a run
+    restarted from before where the last one stopped replaces its rows from there on."""
+    header = "# Force coefficients\n# Time\tCd\tCs\tCl\n"
+    runs = {
+        "0": [(0.1, 3.0, 0, 0.5), (0.2, 3.1, 0, 0.6), (0.3, 3.2, 0, 0.7)],
+        "0.15": [(0.2, 9.0, 0, 9.0)],  # restarted from 0.15: 0.2 again, 0.3 never reached
+        "0.2": [(0.25, 8.0, 0, 8.0), (0.35, 7.0, 0, 7.0)],
+    }
+    for start, rows in runs.items():
+        body = "".join("\t".join(str(v) for v in r) + "\n" for r in rows)
+        _write(
+            tmp_path / "postProcessing" / "forceCoeffs" / start / "coefficient.dat", header + body
+        )
+    rows = outputs.read_force_coeffs(tmp_path)
+    np.testing.assert_array_equal(rows.time, [0.1, 0.2, 0.25, 0.35])
+    np.testing.assert_array_equal(rows.column("Cd"), [3.0, 9.0, 8.0, 7.0])
+    assert rows.columns == ("Cd", "Cs", "Cl")
+    with pytest.raises(FileNotFoundError, match="no force coefficients under"):
+        outputs.read_force_coeffs(tmp_path, "missing")
+
+
 def test_restarts_continue_in_newer_start_time_directories(tmp_path):
     base = tmp_path / "forces"
     head = FORCE_V2006.split("0.005")[0]

@@ -329,7 +329,7 @@ def test_one_coupled_episode_of_four_participants(tmp_path: Path) -> None:
     env = TwoFlapsFastEnv(run_root=tmp_path)
     try:
         env.reset(seed=0, options={"split": "eval"})
-        solvers = {process.name for process in env._engine._gymprecice.run.session.solvers}
+        solvers = {process.name for process in env._gymprecice.run.session.solvers}
         assert solvers == {"fluid", "upstream", "downstream"}
         swing = {agent: [] for agent in AGENTS}
         steps = 0
@@ -367,7 +367,7 @@ def test_one_rendered_step_draws_the_fluid_and_both_bent_flaps(tmp_path: Path) -
     )
     try:
         env.reset(seed=0, options={"split": "eval"})
-        solvers = {process.name for process in env._engine._gymprecice.run.session.solvers}
+        solvers = {process.name for process in env._gymprecice.run.session.solvers}
         assert solvers == {"fluid", "upstream", "downstream"}
         first = env.render()
         env.step(_act(env, 1.0))
@@ -409,7 +409,7 @@ def test_killing_one_solid_is_reported_and_reset_recovers(tmp_path: Path) -> Non
     try:
         env.reset(seed=0, options={"split": "eval"})
         env.step(_act(env, 0.0))
-        session = env._engine._gymprecice.run.session
+        session = env._gymprecice.run.session
         groups = {process.name: process.pgid for process in session.solvers}
         worker = session.worker.pid
         os.killpg(groups["downstream"], signal.SIGKILL)

@@ -20,6 +20,9 @@ File layouts (checked against OpenFOAM v1912, and the other layouts in use):
 Column names come from the file's own ``# Time`` header line, so every layout reads the
 same way: ``rows.column("Cd")``, ``rows.column("total_x")``.
 
+After a run, :func:`read_force_coeffs` reads a forceCoeffs function object's whole
+history at once (restarts joined, the later run winning where they overlap).
+
 The solver may run ahead of the controller, so by the time an env reads the step that
 ended at ``t`` the files may hold rows past ``t``: ``wait_until(t)`` hands out only the
 step's rows, up to ``t``, and keeps the later ones for the next read
@@ -49,6 +52,7 @@ __all__ = [
     "ProbesReader",
     "Rows",
     "TableReader",
+    "read_force_coeffs",
     "time_dirs",
 ]
 
@@ -581,3 +585,28 @@ class ForceCoeffsReader(TableReader):
             start_time=start_time,
             time_tolerance=time_tolerance,
         )
+
+
+def read_force_coeffs(case_dir: str | os.PathLike[str], name: str = "forceCoeffs") -> Rows:
+    """The whole history of the forceCoeffs function object ``name`` of a finished run.
+
+    Reads ``<case_dir>/postProcessing/<name>/<t>/coefficient.dat`` (or
+    ``forceCoeffs.dat``) of every start-time directory ``<t>`` in time order, as
+    :class:`ForceCoeffsReader` does. A run continued from an earlier time than the one
+    before it had reached (a restart) computed that stretch again: its rows replace the
+    earlier run's from its start on, so that a row is kept only when no later row lies
+    at or before its time and the times increase. Columns are named from the files'
+    header (``rows.column("Cd")``, ``rows.column("Cl")``); ``rows.time`` holds the times.
+
+    For the rows a running solver adds step by step, follow the directory with a
+    :class:`ForceCoeffsReader` instead. Raises ``FileNotFoundError`` when there is no
+    row, :class:`OutputFormatError` for a line that is not a row of numbers.
+    """
+    directory = Path(case_dir) / "postProcessing" / name
+    rows = ForceCoeffsReader(directory).read_all()
+    if not len(rows):
+        raise FileNotFoundError(f"no force coefficients under {directory}")
+    # the earliest time at or after each row, over the rows that follow it
+    after = np.append(np.minimum.accumulate(rows.time[::-1])[::-1][1:], np.inf)
+    keep = rows.time < after - 1e-12
+    return Rows(rows.time[keep], rows.values[keep], rows.columns, rows.locations)

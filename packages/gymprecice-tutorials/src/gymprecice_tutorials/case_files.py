@@ -60,18 +60,19 @@ def apply_edits(
     edits: Iterable[tuple[str, str, str]],
     case_dir: Path,
     module: str,
+    table: str = "FAST_EDITS",
 ) -> None:
     """Replace, in place, each edit's ``old`` text in ``files[rel]`` by ``new``.
 
     Each ``(rel, old, new)`` must match exactly once, so a packaged case that changed
-    under a tutorial fails loudly here, naming the file and the ``FAST_EDITS`` of
-    ``module`` to update, rather than training on a case half edited.
+    under a tutorial fails loudly here, naming the file and the edits' ``table`` in
+    ``module`` to update, rather than running a case half edited.
     """
     for rel, old, new in edits:
         count = files[rel].count(old)
         if count != 1:
             raise ValueError(
-                f"{case_dir / rel}: the training case edits {old!r}, which occurs {count} "
-                f"times (expected once); update FAST_EDITS in {module} to the packaged case"
+                f"{case_dir / rel}: the edits of {table} change {old!r}, which occurs {count} "
+                f"times (expected once); update {table} in {module} to the packaged case"
             )
         files[rel] = files[rel].replace(old, new)

@@ -115,8 +115,7 @@ def environments() -> tuple[tuple[str, str, EnvCard], ...]:
                 cylinder,
                 name="jet-cylinder-fast",
                 description="the jet cylinder's training case: coarse mesh, 1 s episodes from "
-                "eight start snapshots, Rabault's reward and jet bound (PPO reaches 95 % of its "
-                "drag floor in minutes on 2 cores: docs/benchmark.md)",
+                "eight start snapshots, Rabault's reward and jet bound",
                 held_out_starts=True,
                 validation_starts=True,
                 reference=floor,
@@ -146,8 +145,8 @@ def environments() -> tuple[tuple[str, str, EnvCard], ...]:
             replace(
                 cylinder,
                 name="quickstart",
-                description="the jet cylinder on a coarse mesh with short episodes (minutes on "
-                "2 cores)",
+                description="the jet cylinder on a coarse mesh with short episodes, to see "
+                "the pipeline work on real OpenFOAM",
                 rollout_time=2.0,
                 action_unit="m³/s",
                 action_bound=2.5e-4,

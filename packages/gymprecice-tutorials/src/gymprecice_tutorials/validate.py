@@ -10,6 +10,10 @@ and lift coefficients and the Strouhal number with the benchmark's reference int
 checks only that the coefficients are finite, in a loose band, and that shedding has
 started. The full run prints the comparison and exits non-zero when a value misses its
 reference interval by more than the stated tolerance.
+
+OpenFOAM is found, and its programs run, by the OpenFOAM plugin
+(:func:`gymprecice_openfoam.find_openfoam`, :func:`gymprecice_openfoam.run_tool`); the
+coefficients are read with :func:`gymprecice_openfoam.read_force_coeffs`.
 """
 
 from __future__ import annotations
@@ -20,7 +24,6 @@ import math
 import os
 import re
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -30,6 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from gymprecice.plugin import CaseError
+from gymprecice_openfoam import find_openfoam, mpi_env, run_tool
+from gymprecice_openfoam import read_force_coeffs as openfoam_read_force_coeffs
 from gymprecice_tutorials import recipes
 from gymprecice_tutorials.recipes import CaseSpec, Resolution
 
@@ -67,63 +73,27 @@ KICK_TIME = 0.2
 
 
 def openfoam_environment(base: dict[str, str] | None = None) -> dict[str, str]:
-    """Environment for the OpenFOAM programs on PATH.
-
-    OpenFOAM's programs need ``WM_PROJECT_DIR`` to find their ``etc/`` files; a sourced
-    OpenFOAM ``etc/bashrc`` sets it. Where it is missing we derive it from the program's
-    install: ``<prefix>/bin/blockMesh`` with ``<prefix>/share/openfoam/etc/controlDict``
-    (the Debian/Ubuntu ``openfoam`` package) or ``<dir>/etc/controlDict`` above the binary
-    directory (an OpenFOAM build tree). Open MPI is allowed to run as root (containers).
+    """Environment for the OpenFOAM programs: ``base`` (default ``os.environ``) with what
+    the OpenFOAM plugin finds they need (``WM_PROJECT_DIR``, and ``PATH`` where it sources
+    an ``etc/bashrc``: :func:`gymprecice_openfoam.find_openfoam`) and Open MPI allowed to
+    run as root (containers). ``base`` unchanged but for that where OpenFOAM is not found.
     """
-    env = dict(os.environ if base is None else base)
-    if not env.get("WM_PROJECT_DIR"):
-        found = find_openfoam_project_dir(env.get("PATH"))
-        if found is not None:
-            env["WM_PROJECT_DIR"] = str(found)
-    if hasattr(os, "geteuid") and os.geteuid() == 0:
-        env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+    try:
+        env = find_openfoam(base).environ(base)
+    except CaseError:
+        env = dict(os.environ if base is None else base)
+    for key, value in mpi_env().items():
+        env.setdefault(key, value)
     return env
 
 
-def find_openfoam_project_dir(path: str | None = None) -> Path | None:
-    exe = shutil.which("blockMesh", path=path)
-    if exe is None:
-        return None
-    bindir = Path(exe).resolve().parent
-    candidates = [bindir.parent / "share" / "openfoam"]
-    candidates += [p for p in bindir.parents if p != Path(p.anchor)][:4]
-    for cand in candidates:
-        if (cand / "etc" / "controlDict").is_file():
-            return cand
-    return None
-
-
 def have_openfoam() -> bool:
-    return all(shutil.which(p) for p in ("blockMesh", "pimpleFoam"))
-
-
-def run_tool(
-    args: Sequence[str], case: Path, log: str, *, env: dict[str, str] | None = None
-) -> float:
-    """Run an OpenFOAM program in ``case``, log to ``case/log``; return the wall time."""
-    start = time.perf_counter()
-    with open(case / log, "w") as out:
-        proc = subprocess.run(
-            list(args),
-            cwd=case,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            env=env or openfoam_environment(),
-            check=False,
-        )
-    if proc.returncode != 0:
-        tail = (case / log).read_text(errors="replace").splitlines()[-25:]
-        raise RuntimeError(
-            f"{' '.join(args)} failed with exit code {proc.returncode} in {case}:\n"
-            + "\n".join(tail)
-        )
-    return time.perf_counter() - start
+    """Whether OpenFOAM is installed with the programs the validation runs."""
+    try:
+        installation = find_openfoam()
+    except CaseError:
+        return False
+    return all(installation.which(p) for p in ("blockMesh", "pimpleFoam"))
 
 
 def prepare_case(spec: CaseSpec, fluid: Path, *, kick: bool = True) -> Path:
@@ -152,15 +122,19 @@ def prepare_case(spec: CaseSpec, fluid: Path, *, kick: bool = True) -> Path:
 
 
 def run_case(fluid: Path, n_procs: int) -> float:
-    """Mesh and run an uncoupled OpenFOAM case; returns the solver's wall time."""
-    env = openfoam_environment()
-    run_tool(["blockMesh"], fluid, "log.blockMesh", env=env)
+    """Mesh and run an uncoupled OpenFOAM case; returns the solver's wall time. Each
+    program runs through :func:`gymprecice_openfoam.run_tool` (its log in ``fluid``, a
+    failure a :class:`~gymprecice.plugin.CaseError` quoting the log's tail)."""
+    installation = find_openfoam()
+    run_tool(["blockMesh"], fluid, "log.blockMesh", installation)
     if n_procs > 1:
-        run_tool(["decomposePar", "-force"], fluid, "log.decomposePar", env=env)
+        run_tool(["decomposePar", "-force"], fluid, "log.decomposePar", installation)
         cmd = ["mpirun", "-np", str(n_procs), "pimpleFoam", "-parallel"]
     else:
         cmd = ["pimpleFoam"]
-    return run_tool(cmd, fluid, "log.pimpleFoam", env=env)
+    start = time.perf_counter()
+    run_tool(cmd, fluid, "log.pimpleFoam", installation, extra_env=mpi_env())
+    return time.perf_counter() - start
 
 
 # --------------------------------------------------------------------------------------
@@ -169,37 +143,11 @@ def run_case(fluid: Path, n_procs: int) -> float:
 
 
 def read_force_coeffs(fluid: Path, name: str = "forceCoeffs") -> dict[str, np.ndarray]:
-    """Time series of a forceCoeffs function object (all restarts, later ones win)."""
-    root = fluid / "postProcessing" / name
-    dirs = sorted((d for d in root.iterdir() if d.is_dir()), key=lambda d: float(d.name))
-    columns: list[str] | None = None
-    chunks: list[np.ndarray] = []
-    for d in dirs:
-        files = [d / "coefficient.dat", d / "forceCoeffs.dat"]
-        path = next((f for f in files if f.is_file()), None)
-        if path is None:
-            continue
-        header: list[str] | None = None
-        rows = []
-        for line in path.read_text().splitlines():
-            if line.startswith("#"):
-                words = line[1:].split()
-                if words and words[0] == "Time":
-                    header = words
-                continue
-            if line.strip():
-                rows.append([float(v) for v in line.split()])
-        if header is None or not rows:
-            continue
-        columns = header
-        chunk = np.asarray(rows)
-        if chunks:
-            chunks[-1] = chunks[-1][chunks[-1][:, 0] < chunk[0, 0] - 1e-12]
-        chunks.append(chunk)
-    if columns is None:
-        raise FileNotFoundError(f"no force coefficients under {root}")
-    data = np.concatenate(chunks)
-    return {c: data[:, k] for k, c in enumerate(columns) if k < data.shape[1]}
+    """Time series of a forceCoeffs function object (all restarts, later ones win), by
+    column name with the times as ``"Time"``: :func:`gymprecice_openfoam.read_force_coeffs`
+    as a dict."""
+    rows = openfoam_read_force_coeffs(fluid, name)
+    return {"Time": rows.time, **{c: rows.column(c) for c in rows.columns}}
 
 
 @dataclass
@@ -472,14 +420,12 @@ __all__ = [
     "check_smoke",
     "comparison_table",
     "deviation",
-    "find_openfoam_project_dir",
     "have_openfoam",
     "main",
     "openfoam_environment",
     "prepare_case",
     "read_force_coeffs",
     "run_case",
-    "run_tool",
     "shedding_stats",
     "validation_spec",
 ]

@@ -21,8 +21,7 @@ import numpy as np
 from gymprecice.env import lifecycle
 from gymprecice.env.config import GymPreciceConfig
 from gymprecice.env.coupling import CouplingSession, CouplingState, WorkerProcess
-from gymprecice.env.pidregistry import kill_recorded_groups
-from gymprecice.env.processes import PidRegistry, SolverProcess
+from gymprecice.env.pidregistry import PidRegistry, kill_recorded_groups
 from gymprecice.env.rundir import (
     EnvIndexClaim,
     RunDirectory,
@@ -30,6 +29,7 @@ from gymprecice.env.rundir import (
     create_run_directory,
     env_root,
 )
+from gymprecice.env.solver_process import SolverProcess
 from gymprecice.env.timed_reader import TimedReader
 from gymprecice.plugin.errors import ConfigError
 from gymprecice.plugin.manager import get_plugin_manager

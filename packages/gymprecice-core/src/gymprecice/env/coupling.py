@@ -30,14 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.env.pidregistry import KILL_WAIT_S
-from gymprecice.env.processes import (
-    PidRegistry,
-    SolverProcess,
-    describe_returncode,
-    launch,
-    read_tail,
-)
+from gymprecice.env.exit_status import describe_returncode
+from gymprecice.env.launching import launch
+from gymprecice.env.pidregistry import KILL_WAIT_S, PidRegistry
+from gymprecice.env.solver_log import read_tail
+from gymprecice.env.solver_process import SolverProcess
 from gymprecice.plugin.divergence import HARD_FAULT_STATUSES
 from gymprecice.plugin.errors import (
     CouplingError,
@@ -78,9 +75,9 @@ class WorkerProcess:
     supervisor never mistakes a later holder of its pid for it. It asks the kernel to
     SIGKILL it when the thread that forked it exits (``PR_SET_PDEATHSIG`` follows the
     *thread*, not the process), so it is forked from a thread that lives as long as the
-    process (:func:`~gymprecice.processes.call_in_lasting_thread`, as every launch): an env
-    reset from a worker thread of a ``ThreadPoolExecutor`` keeps its coupling worker after
-    that thread ends.
+    process (:func:`~gymprecice.env.parent_death.call_in_lasting_thread`, as every
+    launch): an env reset from a worker thread of a ``ThreadPoolExecutor`` keeps its
+    coupling worker after that thread ends.
     """
 
     def __init__(

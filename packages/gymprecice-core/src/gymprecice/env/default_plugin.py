@@ -56,8 +56,8 @@ Both kinds export ``GYMPRECICE_ENV_INDEX``, ``GYMPRECICE_ENV_DIR``, ``GYMPRECICE
 ``GYMPRECICE_SOLVER``, ``GYMPRECICE_PARTICIPANT``, ``GYMPRECICE_PRECICE_CONFIG`` and, for
 reset, ``GYMPRECICE_SEED`` (drawn from the episode's seeded generator, so a reset script
 can randomise the initial state reproducibly). Prepare and reset steps run to completion
-through :func:`gymprecice.processes.run_to_completion` (own process group, log file in the
-run directory, timeout); the coupled program is described by a
+through :func:`gymprecice.env.short_commands.run_to_completion` (own process group, log
+file in the run directory, timeout); the coupled program is described by a
 :class:`~gymprecice.solver.LaunchSpec` and core starts it.
 
 This module is loaded on every ``import gymprecice``: it imports nothing heavy at the top.
@@ -540,7 +540,9 @@ def _run_step(
     The step's process group is recorded in the env's pid registry while it runs, so an
     outer supervisor can still kill a long prerun whose env process died.
     """
-    from gymprecice.env.processes import PidRegistry, run_to_completion  # only when used
+    # only when used
+    from gymprecice.env.pidregistry import PidRegistry
+    from gymprecice.env.short_commands import run_to_completion
 
     seed = None
     if step == "reset" and solver.rng is not None:

@@ -47,13 +47,21 @@ Step = tuple[Any, float, bool, bool, dict[str, Any]]
 class EpisodeRunner:
     """The machinery of one Adapter (see the module docstring).
 
-    ``cls`` is the env's class (its ``divergence_penalty`` unless the configuration sets
-    one); ``idx`` and ``run_root`` are the Adapter's arguments.
+    ``idx`` and ``run_root`` are the Adapter's arguments. ``cls`` is the class whose
+    ``divergence_penalty`` counts unless the configuration sets one: the env's own by
+    default, the multi-agent env's for the view it hands the runner.
     """
 
-    def __init__(self, env: Adapter, idx: int | None, run_root: str | Path | None) -> None:
+    def __init__(
+        self,
+        env: Adapter,
+        idx: int | None,
+        run_root: str | Path | None,
+        *,
+        cls: type | None = None,
+    ) -> None:
         config = env.config
-        cls = type(env)
+        cls = type(env) if cls is None else cls
         configured = config.model.environment.divergence_penalty
         penalty = checked_penalty(
             cls.divergence_penalty if configured is None else configured,

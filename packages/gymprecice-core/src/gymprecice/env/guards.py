@@ -16,8 +16,8 @@ from typing import Any
 
 from gymprecice.env.coupled_run import CoupledRun
 from gymprecice.env.precice_library import mixed_library_problem
-from gymprecice.env.processes import SolverProcess
 from gymprecice.env.returned_values import refuse_non_finite
+from gymprecice.env.solver_process import SolverProcess
 from gymprecice.plugin.divergence import HARD_FAULT_STATUSES, Divergence
 from gymprecice.plugin.errors import SolverDivergedError, SolverTimeoutError
 

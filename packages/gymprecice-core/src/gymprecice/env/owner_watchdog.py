@@ -2,12 +2,13 @@
 
 The process that owns an env (a script, ``gymprecice evaluate``, a vector-env worker) can
 die without running any clean-up: ``kill -9``, the OOM killer, a cluster job's time
-limit, a closed terminal. Its solvers run in sessions of their own (:mod:`gymprecice.processes`),
-so nothing reaches them then, and they compute for hours for a controller that is gone.
-Three layers stop them, each covering the one before it failing:
+limit, a closed terminal. Its solvers run in sessions of their own
+(:mod:`gymprecice.env.launching`), so nothing reaches them then, and they compute for hours
+for a controller that is gone. Three layers stop them, each covering the one before it
+failing:
 
 1. every process core launches asks the kernel to SIGKILL it when its parent dies
-   (``PR_SET_PDEATHSIG``, :func:`gymprecice.processes.launch`); that reaches only the
+   (``PR_SET_PDEATHSIG``, :func:`gymprecice.env.launching.launch`); that reaches only the
    direct child, not what a script or ``mpirun`` started below it;
 2. this watchdog: a small process per owner, started at the owner's first launch, that holds
    the read end of a pipe whose write end only the owner holds. The owner tells it each

@@ -12,7 +12,7 @@ counterpart of :class:`~gymprecice.core.Adapter`, over one coupled run:
   with the divergence penalty and ``info["diverged"]``; an agent whose own task ends
   (:meth:`~MultiAgentAdapter._get_terminations`) leaves, its actuator holding its last action;
 * seeding, ``reset``, ``close``, solver supervision and the test double are the Adapter's:
-  the env holds one and answers its user methods.
+  the env runs on the Adapter's episode runner and answers it agent by agent.
 
 :class:`JointEnv` shows all agents as one ``gymnasium.Env`` (stacked arrays), so the
 fault-tolerant vector envs run a multi-agent env with their failure budget;

@@ -60,8 +60,7 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.env.core import Adapter
-from gymprecice.env.pidregistry import process_starttime
-from gymprecice.env.processes import PidRegistry
+from gymprecice.env.pidregistry import PidRegistry, process_starttime
 from gymprecice.testing import chaos_solver
 from gymprecice.testing.chaos_solver import (
     COEFFICIENTS,

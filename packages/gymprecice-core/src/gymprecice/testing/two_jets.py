@@ -3,7 +3,7 @@
 Tests of :mod:`gymprecice.multiagent` (and its overhead benchmark) need a complete
 multi-agent environment over the same coupled run as the single-agent
 :class:`~gymprecice.testing.chaos.CylinderEnv`: the case of :func:`~gymprecice.testing.chaos.write_case`
-(Adapter engine, coupling worker, the preCICE double, a solver process that fails on
+(the episode runner, coupling worker, the preCICE double, a solver process that fails on
 request through :func:`~gymprecice.testing.chaos.inject`). Agent ``upper`` drives ``jet1``,
 agent ``lower`` drives ``jet2``; both observe the 3 probe pressures and the latest drag
 coefficient, and both are rewarded with minus the drag. Needs PettingZoo

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice.env.owner_watchdog import Owner, this_owner
-from gymprecice.env.processes import kill_recorded_groups
+from gymprecice.env.pidregistry import kill_recorded_groups
 from gymprecice.vector import host
 from gymprecice.vector.contract import CRASH, TIMEOUT, Reply
 from gymprecice.vector.failures import TAIL_LINES, describe_exception

@@ -43,7 +43,7 @@ import ray
 from ray.exceptions import GetTimeoutError, RayActorError, RayError, TaskUnschedulableError
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
-from gymprecice.env.processes import kill_recorded_groups
+from gymprecice.env.pidregistry import kill_recorded_groups
 from gymprecice.vector.contract import CRASH, Reply
 from gymprecice.vector.failures import TAIL_LINES
 from gymprecice.vector.local import LocalBackend

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.env.processes import describe_returncode
+from gymprecice.env.exit_status import describe_returncode
 from gymprecice.vector.contract import Backend
 from gymprecice.vector.failures import (
     TAIL_LINES,

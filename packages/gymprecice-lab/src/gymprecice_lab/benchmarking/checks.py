@@ -159,7 +159,8 @@ def check_grids(benchmark: BenchmarkSettings, env: LabEnv) -> None:
     """The sweep's grids, checked now rather than after every seed has trained."""
     from gymprecice_lab.rollouts.sweep import parse_grid
 
-    parse_grid(benchmark.amplitudes, "amplitudes")
+    if benchmark.amplitudes.strip():  # empty: no sinusoids
+        parse_grid(benchmark.amplitudes, "amplitudes")
     if not 0.0 <= benchmark.centre <= 1.0:
         raise BenchmarkError(
             f"--centre is a fraction of the action box, 0 to 1; got {benchmark.centre}"

@@ -361,7 +361,8 @@ SWEEP_GRID = (
     option(
         "--amplitudes",
         default="0.25,0.5,1",
-        help="sinusoid amplitudes, fractions of the half range, comma-separated",
+        help="sinusoid amplitudes, fractions of the half range, comma-separated (empty: "
+        "no sinusoids)",
     ),
     option(
         "--frequencies",

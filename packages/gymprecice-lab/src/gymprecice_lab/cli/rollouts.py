@@ -81,11 +81,22 @@ def _sweep() -> Command:
         "Run the env uncontrolled, N constant actions across the action box, "
         "a grid of sinusoids (amplitude x frequency) and, with --feedback-gains or "
         "--feedback-grid, its classical feedback, on its held-out starts (else seeds); "
-        "write sweep.csv, sweep.json (best constant, best sinusoid) and sweep.png.",
+        "write sweep.csv, sweep.json (best constant, best sinusoid) and sweep.png. "
+        "--starts validation runs them on the env's validation starts instead: a baseline "
+        "tuned there, as a trained model is chosen, never sees the held-out starts; run "
+        "its best point on those afterwards.",
         (
             *o.env_options(rollout=True),
             *o.SWEEP_GRID,
-            o.EPISODES.but(default=3, help="held-out starts per controller"),
+            o.EPISODES.but(default=3, help="starts per controller"),
+            o.option(
+                "--starts",
+                choices=("held-out", "validation"),
+                default="held-out",
+                help="the starts every controller runs from: the held-out ones (what compare "
+                "and benchmark read), or the validation ones (those that choose a trained "
+                "model: tune a baseline there, then run its best point on the held-out starts)",
+            ),
             o.workers_option("controllers run at once, each with its own env and core"),
         ),
         functools.partial(run, "sweep"),

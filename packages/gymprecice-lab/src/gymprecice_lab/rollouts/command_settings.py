@@ -89,10 +89,12 @@ class SweepSettings(EnvSettings):
     feedback_grid: str | None
 
     # -- the rollouts ---------------------------------------------------------------------
-    #: ``--episodes``: held-out starts per controller
+    #: ``--episodes``: starts per controller
     episodes: int
     #: ``--workers``: controllers run at once
     workers: int
+    #: ``--starts``: the env's held-out starts, or its validation starts (to tune a law)
+    starts: str = "held-out"
 
 
 @dataclass(frozen=True, kw_only=True)

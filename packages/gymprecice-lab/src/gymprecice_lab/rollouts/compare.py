@@ -112,6 +112,13 @@ def read_runs(runs: list[Path]) -> tuple[LabEnv, list[Controller], list[Controll
         env, manifest = _env_of(run)
         envs.add(env.name)
         seeds.add(manifest.get("seeds", {}).get("seed"))
+        if manifest.get("settings", {}).get("starts") == "validation":
+            raise SystemExit(
+                f"gymprecice compare: {run} ran on the env's validation starts (gymprecice "
+                "sweep --starts validation), not the held-out ones the others ran on: run its "
+                "best point on the held-out starts (gymprecice sweep with that one point, or "
+                "gymprecice feedback --law) and compare that"
+            )
         if (run / "sweep.csv").is_file():
             with (run / "sweep.csv").open() as handle:
                 for row in csv.DictReader(handle):

@@ -3,7 +3,9 @@
 Each episode runs from reset to its end (terminated or truncated); its actions, metrics
 and solver steps' coefficients go to the files of :mod:`gymprecice_lab.rollouts.records`,
 its frames to a video where asked (:mod:`gymprecice_lab.rollouts.video`). With
-``every_start`` episode k runs the env's held-out start k (:mod:`gymprecice_lab.common.starts`).
+``every_start`` episode k runs the env's held-out start k (:mod:`gymprecice_lab.common.starts`),
+or with ``starts="validation"`` its validation start k: the starts that choose a trained
+model, where a baseline is tuned without seeing the held-out ones.
 """
 
 from __future__ import annotations
@@ -17,7 +19,13 @@ import gymnasium as gym
 import numpy as np
 
 from gymprecice.card import Reference
-from gymprecice_lab.common.starts import held_out_starts, seed_start_label, start_options
+from gymprecice_lab.common.starts import (
+    held_out_starts,
+    seed_start_label,
+    start_options,
+    validation_options,
+    validation_starts,
+)
 from gymprecice_lab.rollouts.controllers import Controller
 from gymprecice_lab.rollouts.records import (
     coefficient_columns,
@@ -29,7 +37,10 @@ from gymprecice_lab.rollouts.records import (
 )
 from gymprecice_lab.rollouts.video import VideoFile, episode_video_path
 
-__all__ = ["rollout"]
+__all__ = ["STARTS", "rollout"]
+
+#: which starts ``every_start`` runs: the held-out ones (the test), or the validation ones
+STARTS = ("held-out", "validation")
 
 
 def rollout(
@@ -40,6 +51,7 @@ def rollout(
     episodes: int = 1,
     seed: int = 0,
     every_start: bool = False,
+    starts: str = "held-out",
     reference: Reference | None = None,
     video: Path | None = None,
 ) -> dict[str, Any]:
@@ -48,26 +60,39 @@ def rollout(
     ``every_start``: episode k runs the env's held-out start k (mod their number), the
     same for every controller and seed (an env without held-out starts: its seed
     ``seed + k``, the start labelled so); otherwise the held-out split draws each
-    episode's start from its seed (``seed + k``). ``reference`` (the card's, a drag
+    episode's start from its seed (``seed + k``). ``starts="validation"`` (with
+    ``every_start``): episode k runs the env's validation start k instead
+    (:func:`~gymprecice_lab.common.starts.validation_starts`, mod their number), never a
+    held-out one. ``reference`` (the card's, a drag
     floor): each episode's summary also gives its settled mean of the reference's metric
     and the fractions of the floor it reaches. ``video``: each episode's frames (the env
     renders) go to :func:`~gymprecice_lab.rollouts.video.episode_video_path`.
     """
+    if starts not in STARTS:
+        raise ValueError(f"starts is one of {', '.join(STARTS)}, got {starts!r}")
     out.mkdir(parents=True, exist_ok=True)
     history_rows: list[dict[str, Any]] = []
     coefficient_rows: list[tuple[int, float, float, float]] = []
     summaries = []
-    starts = held_out_starts(env) if every_start else ()
-    seeded = every_start and not starts  # starts are seeds
+    validation = every_start and starts == "validation"
+    labels: tuple[str, ...] = ()
+    if every_start:
+        labels = validation_starts(env) if validation else held_out_starts(env)
+    seeded = every_start and not labels  # starts are seeds
     for episode in range(episodes):
-        options = start_options(episode, len(starts))
+        episode_seed = seed + episode
+        if validation:
+            start_seed, options = validation_options(env, episode)
+            episode_seed = episode_seed if start_seed is None else start_seed
+        else:
+            options = start_options(episode, len(labels))
         path = episode_video_path(video, episode, episodes) if video is not None else None
         rows, coefficients, summary_row, t0 = _episode(
-            env, controller, episode, seed + episode, options, path
+            env, controller, episode, episode_seed, options, path
         )
-        if starts:
-            summary_row["start"] = options["start"]
-            summary_row["start_label"] = starts[options["start"]]
+        if labels:
+            summary_row["start"] = episode % len(labels)
+            summary_row["start_label"] = labels[episode % len(labels)]
         elif seeded:
             summary_row["start"] = episode
             summary_row["start_label"] = seed_start_label(seed + episode)

@@ -19,6 +19,14 @@ The objective is the environment's (its lab card's ``objective``, lower is bette
 the card says ``maximize``; for the flap the mean tip-displacement magnitude), else the
 negated mean reward per action.
 
+``--starts validation`` runs every controller from the env's *validation* starts instead
+(:func:`~gymprecice_lab.common.starts.validation_starts`: the starts that choose the model
+a training run keeps, disjoint from the held-out ones). That tunes a baseline as a
+learned controller is chosen, without seeing the starts it is judged on: take the best
+point from ``sweep.json`` and run it on the held-out starts (``gymprecice sweep`` with
+that one point, or ``gymprecice feedback --law``). Such a sweep records its starts in
+``sweep.json`` and its manifest, and ``gymprecice compare`` refuses it.
+
 Every controller's rollout is independent of the others, so ``--workers N`` spreads them
 over N processes, each with its own env (``<out>/envs/env_<k>``) and solver; the table is
 the same as from one worker. A controller's rollout counts as finished once its
@@ -47,7 +55,12 @@ from gymprecice_lab.common.command_runs import die_with_parent
 from gymprecice_lab.common.manifest import write_manifest
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env
 from gymprecice_lab.common.requirements import require_solvers
-from gymprecice_lab.common.starts import StartsError, describe_starts, held_out_starts
+from gymprecice_lab.common.starts import (
+    StartsError,
+    describe_starts,
+    held_out_starts,
+    validation_starts,
+)
 from gymprecice_lab.common.wrapped_env import make_env_checked
 from gymprecice_lab.rollouts.command_settings import SweepSettings
 from gymprecice_lab.rollouts.controllers import sine_controller, zero_controller
@@ -224,6 +237,7 @@ def run_jobs(spec: dict[str, Any], jobs: Sequence[SweepJob], index: int) -> None
                 episodes=spec["episodes"],
                 seed=spec["seed"],
                 every_start=True,
+                starts=spec.get("starts") or "held-out",
                 reference=env_info.reference,
             )
             values = ", ".join(f"{objective(env_info, e):.4g}" for e in summary["episodes"])
@@ -312,13 +326,14 @@ def sweep_command(settings: SweepSettings) -> int:
         print(f"gymprecice sweep: {exc}", file=sys.stderr)
         return 2
     grid = _grid(settings, env_info)
+    starts = settings.starts
     out = settings.run_dir
     kwargs = settings.constructor_kwargs
     if not settings.double:
         status = require_solvers(env_info, "sweep", verbose=settings.require_solvers, kwargs=kwargs)
         if status:
             return status
-    box = _action_box(env_info, kwargs)
+    box = _action_box(env_info, kwargs, starts)
     jobs = sweep_jobs(
         box,
         settings.constants,
@@ -339,6 +354,8 @@ def sweep_command(settings: SweepSettings) -> int:
         "seed": settings.seed,
         "feedback_signal": grid.signal if grid.gains else None,
         "feedback_law": env_info.feedback_law if grid.law_points else None,
+        # None: the held-out starts (as sweeps recorded them before --starts existed)
+        "starts": None if starts == "held-out" else starts,
     }
     resumable = _same_rollouts(out, identity)
     write_manifest(
@@ -364,9 +381,9 @@ def sweep_command(settings: SweepSettings) -> int:
             "finished by an earlier run of this sweep: kept",
             flush=True,
         )
-    if todo and not _run_unfinished(settings, env_info, grid, kwargs, out, todo):
+    if todo and not _run_unfinished(settings, env_info, grid, kwargs, out, todo, starts):
         return 1
-    _write(out, _results(out, jobs, env_info, settings.episodes), env_info)
+    _write(out, _results(out, jobs, env_info, settings.episodes), env_info, starts)
     return 0
 
 
@@ -376,7 +393,10 @@ def _grid(settings: SweepSettings, env_info: LabEnv) -> _Grid:
         raise SystemExit(
             f"gymprecice sweep: --centre is a fraction of the action box, 0 to 1; got {settings.centre}"
         )
-    amplitudes = parse_grid(settings.amplitudes, "amplitudes")
+    # an empty --amplitudes: no sinusoids (a sweep of the feedback law alone)
+    amplitudes = (
+        parse_grid(settings.amplitudes, "amplitudes") if settings.amplitudes.strip() else []
+    )
     frequencies = parse_grid(settings.frequencies, "frequencies")
     if any(f <= 0 for f in frequencies):
         raise SystemExit("gymprecice sweep: --frequencies must be positive (Hz)")
@@ -395,13 +415,17 @@ def _grid(settings: SweepSettings, env_info: LabEnv) -> _Grid:
     return _Grid(amplitudes, frequencies, gains, delays, signal, law, law_points)
 
 
-def _action_box(env_info: LabEnv, kwargs: dict[str, Any]) -> tuple[float, float]:
+def _action_box(
+    env_info: LabEnv, kwargs: dict[str, Any], starts: str = "held-out"
+) -> tuple[float, float]:
     """The action's low and high on its first dimension, read from an env built (no
     solver starts before a reset) and closed; refused unless a bounded Box."""
     probe = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=False)
     try:
         space = probe.action_space
         held_out_starts(probe)  # a card that declares starts the env does not name
+        if starts == "validation":
+            validation_starts(probe)
     except StartsError as exc:
         raise SystemExit(f"gymprecice sweep: {exc}") from None
     finally:
@@ -421,15 +445,20 @@ def _run_unfinished(
     kwargs: dict[str, Any],
     out: Path,
     todo: list[SweepJob],
+    starts: str = "held-out",
 ) -> bool:
     """Run the controllers ``todo`` on ``--workers`` workers; whether all finished (those
     that did not are named on stderr)."""
     for job in todo:  # a half-written rollout must not pass for a finished one
         (out / job.label / "summary.json").unlink(missing_ok=True)
     workers = min(max(1, settings.workers), len(todo))
+    where = (
+        f"{settings.episodes} validation start(s)"
+        if starts == "validation"
+        else describe_starts(settings.episodes, env_info.held_out_starts)
+    )
     print(
-        f"gymprecice sweep: {len(todo)} controller(s) x "
-        f"{describe_starts(settings.episodes, env_info.held_out_starts)} on {workers} worker(s)",
+        f"gymprecice sweep: {len(todo)} controller(s) x {where} on {workers} worker(s)",
         flush=True,
     )
     spec = {
@@ -440,6 +469,7 @@ def _run_unfinished(
         "seed": settings.seed,
         "signal": grid.signal,
         "law": env_info.feedback_law if grid.law_points else None,
+        "starts": starts,
     }
     _run_workers(spec, todo, workers)
     failed = [j.label for j in todo if not _finished(out, j, settings.episodes)]
@@ -490,7 +520,9 @@ def best(results: Sequence[SweepResult], kind: str) -> SweepResult | None:
     return min(of_kind, key=lambda r: r.mean) if of_kind else None
 
 
-def _write(out: Path, results: list[SweepResult], env_info: LabEnv) -> None:
+def _write(
+    out: Path, results: list[SweepResult], env_info: LabEnv, starts: str = "held-out"
+) -> None:
     rows = [r.row() for r in results]
     names = list(dict.fromkeys(name for row in rows for name in row))
     with (out / "sweep.csv").open("w", newline="") as handle:
@@ -498,6 +530,7 @@ def _write(out: Path, results: list[SweepResult], env_info: LabEnv) -> None:
         writer.writeheader()
         writer.writerows(rows)
     summary = {
+        "starts": starts,
         "controllers": rows,
         "best_constant": best(results, "constant").row() if best(results, "constant") else None,
         "best_sinusoid": best(results, "sinusoid").row() if best(results, "sinusoid") else None,

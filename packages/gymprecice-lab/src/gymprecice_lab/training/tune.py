@@ -58,10 +58,25 @@ class TuneError(Exception):
 
 # -- the study -------------------------------------------------------------------------------
 
+#: the environment variable that tells an ``--n-jobs`` worker process its index
+WORKER_VARIABLE = "GYMPRECICE_TUNE_WORKER"
 
-def open_study(storage_url: str, name: str, settings: Mapping[str, Any], seed: int) -> Any:
+
+def sampler_seed(seed: int, trials_so_far: int, worker: int) -> int:
+    """A sampler seed that differs between workers and between the openings of a study,
+    and is the same for the same command on the same study (reproducible)."""
+    return (seed * 1_000_003 + trials_so_far * 1_009 + worker) % 2**32
+
+
+def open_study(
+    storage_url: str, name: str, settings: Mapping[str, Any], seed: int, worker: int = 0
+) -> Any:
     """The study ``name`` in ``storage_url``, created with ``settings`` or checked against
-    them: a study of another env, algorithm or budget is refused, not mixed in."""
+    them: a study of another env, algorithm or budget is refused, not mixed in.
+
+    Its sampler is seeded from ``seed``, the trials the study already holds and ``worker``
+    (the ``--n-jobs`` process it serves): a sampler seeded with ``seed`` alone would make
+    every worker, and every resumed search, propose the same first trials again."""
     import optuna
     from optuna.storages import RDBStorage, RetryHeartbeatStaleTrialCallback
 
@@ -84,9 +99,11 @@ def open_study(storage_url: str, name: str, settings: Mapping[str, Any], seed: i
         study_name=name,
         storage=storage,
         direction="maximize",
-        sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=5),
         pruner=optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=0),
         load_if_exists=True,
+    )
+    study.sampler = optuna.samplers.TPESampler(
+        seed=sampler_seed(seed, len(study.trials), worker), n_startup_trials=5
     )
     recorded = {key: study.user_attrs.get(key) for key in STUDY_KEYS}
     if all(value is None for value in recorded.values()):
@@ -345,7 +362,9 @@ def _tune(settings: TuneSettings) -> int:
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     try:
-        study = open_study(storage, name, study_settings, settings.seed)
+        study = open_study(
+            storage, name, study_settings, settings.seed, int(os.environ.get(WORKER_VARIABLE, "0"))
+        )
     except TuneError:
         if created:
             with contextlib.suppress(OSError):
@@ -356,6 +375,10 @@ def _tune(settings: TuneSettings) -> int:
     _retry_dead_trials(study)
     done = _counted(study)
     todo = max(0, settings.trials - done)
+    if WORKER_VARIABLE in os.environ:  # an --n-jobs worker: its parent speaks and reports
+        if todo:
+            _optimize(study, settings, env, out, todo)
+        return 0
     print(
         f"gymprecice tune: {env.name}, {algo.upper()}, study {name!r} in {storage}: "
         f"{done} trial(s) finished, {todo} to run ({settings.n_jobs} at once), each "
@@ -419,7 +442,11 @@ def _optimize_in_workers(settings: TuneSettings, storage: str, name: str, n: int
             name,
             "--no-progress-bar",
         ]
-        workers.append(subprocess.Popen(cmd, preexec_fn=_die_with_parent))
+        workers.append(
+            subprocess.Popen(
+                cmd, preexec_fn=_die_with_parent, env={**os.environ, WORKER_VARIABLE: str(k)}
+            )
+        )
     for worker in workers:
         worker.wait()
 
@@ -472,6 +499,8 @@ def _report(study: Any, settings: TuneSettings, env: LabEnv, out: Path, name: st
         "best_hyperparams": params,
         "trials": {"complete": len(complete), "pruned": len(pruned), "failed": len(failed)},
         "failures": {str(t.number): t.user_attrs["failure"] for t in failed},
+        # what the search cost: each trial's wall-clock, finished or not
+        "trial_seconds": {str(t.number): _seconds(t) for t in study.get_trials(deepcopy=False)},
     }
     (out / "tune.json").write_text(json.dumps(summary, indent=2) + "\n")
     figures = _figures(study, out)
@@ -482,6 +511,14 @@ def _report(study: Any, settings: TuneSettings, env: LabEnv, out: Path, name: st
         f"--hyperparams {best_file}`), tune.json{figures}"
     )
     return 0
+
+
+def _seconds(trial: Any) -> float | None:
+    """A trial's wall-clock (s) from its start to its end; ``None`` for one still running
+    or waiting (a killed trial ends when the next opening of the study finds it dead)."""
+    if trial.datetime_start is None or trial.datetime_complete is None:
+        return None
+    return round((trial.datetime_complete - trial.datetime_start).total_seconds(), 1)
 
 
 def _figures(study: Any, out: Path) -> str:

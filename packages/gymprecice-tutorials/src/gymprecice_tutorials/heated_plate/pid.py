@@ -1,4 +1,4 @@
-"""The classical answer to a thermal setpoint: a PI(D) heater, tuned by a sweep.
+"""The classical answer to a thermal setpoint: a PI(D) heater.
 
 :class:`PIDController` maps HeatedPlate-v0's observation (the interface temperature's
 error and its change over the last step) to a heater temperature::
@@ -6,27 +6,33 @@ error and its change over the last step) to a heater temperature::
     heater = 310 K - kp e - kd de + I,    I <- clip(I - ki e dt)
 
 with ``dt`` the action time (0.1 s) and the integral clipped so the heater stays within
-its range (no wind-up). :func:`sweep` runs every ``(kp, ki, kd)`` of a grid on a few
-*training* starts (never the held-out ones), ranks them by the mean tracking error plus
-the actuation cost (the negated mean reward), and :func:`main` evaluates the best one,
-the uncontrolled plate, constant heaters and any trained policy (``--policy``) on the
-held-out starts, all in one table and one figure:
+its range (no wind-up).
 
-    python -m gymprecice_tutorials.heated_plate.pid --solid openfoam --out runs/plate-pid
+:data:`PID_LAW` is that family as the plate's classical feedback law (its lab card's
+``feedback_law``), with the grid of the documented tuning sweep. The lab runs it like
+any env's own law::
+
+    gymprecice sweep heated-plate-fast --starts validation --feedback-grid "kp=2,3;ki=25,50"
+    gymprecice feedback heated-plate --law "kp=3;ki=50;kd=1" --all-starts
+    gymprecice benchmark heated-plate-fast        # the best point beside the learned ones
+
+``python -m gymprecice_tutorials.heated_plate.pid`` (the command earlier docs give) runs
+those commands for the plate, each printed before it runs (:func:`main`): the gains tuned
+on the validation starts of the training case (``--sweep-on fast``) or of HeatedPlate-v0,
+never the held-out ones; then the uncontrolled plate, constant heaters, the tuned PID and
+any trained policy (``--policy``) on HeatedPlate-v0's held-out starts, compared in one
+table (``compare.md``) and drawn (``plots/``)::
+
     python -m gymprecice_tutorials.heated_plate.pid --sweep-on fast --policy shipped
-
-``--sweep-on fast`` sweeps on the training case (HeatedPlateFast-v0, 3.5 s an episode
-instead of 57 s) and evaluates on HeatedPlate-v0: the same split as a trained policy's.
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
-import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+import shlex
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -35,13 +41,11 @@ import numpy as np
 from gymprecice.card import FeedbackLaw
 from gymprecice_tutorials.heated_plate.environment import (
     ACTION_TIME,
-    EVAL_STARTS,
     HEATER_RANGE,
     REFERENCE_HEATER,
-    HeatedPlateEnv,
 )
 
-__all__ = ["PID_LAW", "PIDController", "Rollout", "plot", "rollout", "sweep"]
+__all__ = ["PID_LAW", "PIDController", "lab_commands", "main"]
 
 
 @dataclass
@@ -86,142 +90,38 @@ PID_LAW = FeedbackLaw(
     _pid_for,
 )
 
-
-@dataclass
-class Rollout:
-    """One episode of one controller: its mean tracking error, mean reward, time series."""
-
-    label: str
-    seed: int
-    split: str
-    tracking_error: float
-    mean_reward: float
-    #: the mean ``|heater - 310 K|`` (K): what the reward's actuation cost weighs
-    actuation: float
-    time: list[float]
-    temperature: list[float]
-    heater: list[float]
-    setpoint: float
+#: the constant heaters of the held-out sweep: 300 to 340 K every 5 K
+CONSTANT_HEATERS = 9
 
 
-def rollout(
-    env: HeatedPlateEnv,
-    controller: Callable[[np.ndarray], np.ndarray],
-    *,
-    seed: int,
-    split: str,
-    label: str,
-) -> Rollout:
-    """Run one episode of ``controller`` (obs -> action) from start ``seed`` of ``split``."""
-    if hasattr(controller, "reset"):
-        controller.reset()
-    obs, _ = env.reset(seed=seed, options={"split": split})
-    times, temperatures, heaters, errors, rewards = [], [], [], [], []
-    while True:
-        obs, reward, terminated, truncated, info = env.step(controller(obs))
-        metrics = info["metrics"]
-        times.append(env.time)
-        temperatures.append(metrics["interface_temperature"])
-        heaters.append(metrics["heater_temperature"])
-        errors.append(metrics["tracking_error"])
-        rewards.append(float(reward))
-        if terminated or truncated:
-            break
-    return Rollout(
-        label,
-        seed,
-        split,
-        float(np.mean(errors)),
-        float(np.mean(rewards)),
-        float(np.mean(np.abs(np.asarray(heaters) - REFERENCE_HEATER))),
-        times,
-        temperatures,
-        heaters,
-        env.start.setpoint,
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m gymprecice_tutorials.heated_plate.pid",
+        description="Tune the plate's PID on validation starts, then run it, the uncontrolled "
+        "plate, constant heaters and trained policies on HeatedPlate-v0's held-out starts: "
+        "the lab's gymprecice sweep, evaluate, compare and plot, each printed as it runs.",
     )
-
-
-def constant(heater: float) -> Callable[[np.ndarray], np.ndarray]:
-    return lambda _obs: np.array([heater], dtype=np.float32)
-
-
-def sweep(
-    env: HeatedPlateEnv,
-    grid: Sequence[tuple[float, float, float]],
-    seeds: Sequence[int],
-    say: Callable[[str], None] = print,
-) -> list[tuple[tuple[float, float, float], float, float]]:
-    """``[(gains, mean tracking error, mean reward)]`` on training starts, best first."""
-    results = []
-    for gains in grid:
-        runs = [
-            rollout(env, PIDController(*gains), seed=s, split="train", label=str(gains))
-            for s in seeds
-        ]
-        error = float(np.mean([r.tracking_error for r in runs]))
-        reward = float(np.mean([r.mean_reward for r in runs]))
-        say(
-            f"  kp={gains[0]:g} ki={gains[1]:g} kd={gains[2]:g}: error {error:.4f} K, "
-            f"reward {reward:.4f}"
-        )
-        results.append((tuple(gains), error, reward))
-    return sorted(results, key=lambda r: -r[2])
-
-
-def plot(results: Path, out: Path) -> Path:
-    """Interface and heater temperature against time, every controller on every held-out
-    start of ``results`` (the ``pid.json`` that :func:`main` writes), one column a start."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    saved = json.loads(Path(results).read_text())
-    runs, settle = saved["evaluation"], float(saved.get("settle_time", 0.3))
-    seeds = sorted({r["seed"] for r in runs})
-    labels = list(dict.fromkeys(r["label"] for r in runs))
-    fig, axes = plt.subplots(2, len(seeds), figsize=(4.2 * len(seeds), 6), sharex=True)
-    axes = np.asarray(axes).reshape(2, len(seeds))
-    for col, seed in enumerate(seeds):
-        for label in labels:
-            (run,) = [r for r in runs if r["seed"] == seed and r["label"] == label]
-            axes[0, col].plot(run["time"], run["temperature"], label=label)
-            axes[1, col].plot(run["time"], run["heater"], label=label)
-        setpoint = next(r["setpoint"] for r in runs if r["seed"] == seed)
-        axes[0, col].axhline(setpoint, color="k", linestyle=":", label="setpoint")
-        start = EVAL_STARTS[seed]
-        for row in (0, 1):
-            axes[row, col].axvline(settle + start.step_time, color="grey", linewidth=0.8)
-        axes[0, col].set_title(
-            f"held-out start {seed}: inflow 0.1 -> {start.velocity:g} m/s at "
-            f"t = {settle + start.step_time:g} s",
-            fontsize=9,
-        )
-        axes[1, col].set_xlabel("time (s)")
-    axes[0, 0].set_ylabel("mean interface temperature (K)")
-    axes[1, 0].set_ylabel("heater temperature (K)")
-    axes[0, -1].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
-
-
-def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs solvers
-    """Sweep PI(D) gains on training starts, then evaluate on the held-out starts."""
-    parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("--solid", default="openfoam", choices=["openfoam", "fenics"])
     parser.add_argument("--double", action="store_true", help="on the test double")
     parser.add_argument("--kp", default="0,1,2", help="comma-separated proportional gains")
     parser.add_argument("--ki", default="5,10,20", help="integral gains (1/s)")
     parser.add_argument("--kd", default="0", help="derivative gains")
-    parser.add_argument("--seeds", default="0", help="training starts of the sweep")
-    parser.add_argument("--constants", default="305,310,315,320", help="constant heaters (K)")
+    parser.add_argument(
+        "--seeds",
+        default="0",
+        help="comma-separated; as many validation starts tune the gains (the env's "
+        "validation starts, not training seeds, since the lab tunes there)",
+    )
+    parser.add_argument(
+        "--constants",
+        default="305,310,315,320",
+        help="constant heaters (K): any runs the lab's nine, 300 to 340 K every 5 K; empty: none",
+    )
     parser.add_argument(
         "--sweep-on",
         choices=["full", "fast"],
         default="full",
-        help="sweep on HeatedPlate-v0 itself or on its training case HeatedPlateFast-v0",
+        help="tune on HeatedPlate-v0 itself or on its training case HeatedPlateFast-v0",
     )
     parser.add_argument(
         "--policy",
@@ -232,77 +132,85 @@ def main(argv: Sequence[str] | None = None) -> int:  # pragma: no cover - runs s
         "shipped name, a training directory or model .zip",
     )
     parser.add_argument("--out", default="gymprecice-runs/heated-plate-pid")
-    args = parser.parse_args(argv)
-    floats = lambda text: [float(v) for v in text.split(",") if v]  # noqa: E731
+    return parser
+
+
+def lab_commands(args: argparse.Namespace, point: str) -> list[list[str]]:
+    """The ``gymprecice`` commands after the tuning sweep, for the PID ``point``
+    (``"kp=3;ki=50;kd=1"``): the held-out sweep, one ``evaluate`` per policy, ``compare``
+    and ``plot`` (each an argv without the leading ``gymprecice``)."""
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    policies = {}
-    if args.policy:  # a trained policy, as the lab evaluates one (gymprecice-lab)
-        from gymprecice_lab.policies.shipped import PolicyController
+    held_out = ["--double"] if args.double else []
+    if args.solid != "openfoam":
+        held_out += ["--env-kwargs", json.dumps({"solid": args.solid})]
+    sweep = out / "sweep"
+    constants = CONSTANT_HEATERS if args.constants.strip() else 0
+    # NAME=VALUE: an empty value stays one argument
+    sweep_grid = [f"--feedback-grid={point}", "--constants", str(constants), "--amplitudes="]
+    commands = [["sweep", "heated-plate", *sweep_grid, "--out", str(sweep), *held_out]]
+    policies: list[str] = []
+    for spec in args.policy:
+        name = f"policy-{Path(spec).name}"
+        while str(out / name) in policies:  # two runs/…/sac: policy-sac, policy-sac-2
+            name = f"{name}-{len(policies) + 1}"
+        policies.append(str(out / name))
+        evaluate = ["evaluate", "heated-plate", "--policy", spec, "--all-starts"]
+        commands.append([*evaluate, "--out", policies[-1], *held_out])
+    label = "feedback-" + PID_LAW.label(_values(point))  # the sweep's run of the PID
+    commands.append(["compare", str(sweep), *policies, "--out", str(out)])
+    baseline = ["--baseline", str(sweep / "uncontrolled")]
+    commands.append(["plot", str(sweep / label), *policies, *baseline, "--out", str(out / "plots")])
+    return commands
 
-        # labelled by the last part of the spec: runs/heated-plate-fast/sac -> "policy sac"
-        policies = {
-            f"policy {Path(spec).name}": PolicyController(spec, "heated-plate", HEATER_RANGE)
-            for spec in args.policy
-        }
-    env = HeatedPlateEnv(solid=args.solid, double=args.double, run_root=out / "runs")
-    started = time.perf_counter()
-    try:
-        grid = list(itertools.product(floats(args.kp), floats(args.ki), floats(args.kd)))
-        where = "HeatedPlateFast-v0" if args.sweep_on == "fast" else "HeatedPlate-v0"
-        print(f"sweep of {len(grid)} gains on training starts {args.seeds} of {where}:")
-        if args.sweep_on == "fast":
-            from gymprecice_tutorials.heated_plate.fast import HeatedPlateFastEnv
 
-            sweep_env = HeatedPlateFastEnv(double=args.double, run_root=out / "runs")
-            try:
-                ranked = sweep(sweep_env, grid, [int(s) for s in args.seeds.split(",")])
-            finally:
-                sweep_env.close()
-        else:
-            ranked = sweep(env, grid, [int(s) for s in args.seeds.split(",")])
-        best = ranked[0][0]
-        print(f"best: kp={best[0]:g} ki={best[1]:g} kd={best[2]:g}")
-        controllers: dict[str, Any] = {
-            "uncontrolled": constant(REFERENCE_HEATER),
-            **{f"constant {h:g} K": constant(h) for h in floats(args.constants)},
-            f"PID kp={best[0]:g} ki={best[1]:g} kd={best[2]:g}": PIDController(*best),
-            **policies,
-        }
-        evaluated = []
-        for label, controller in controllers.items():
-            runs = [
-                rollout(env, controller, seed=s, split="eval", label=label)
-                for s in range(len(EVAL_STARTS))
-            ]
-            evaluated += runs
-            errors = [r.tracking_error for r in runs]
-            rewards = [r.mean_reward for r in runs]
-            print(
-                f"{label:<28} tracking error {np.mean(errors):.4f} ± {np.std(errors):.4f} K "
-                f"({', '.join(f'{e:.3f}' for e in errors)}), mean reward "
-                f"{np.mean(rewards):.4f}, actuation "
-                f"{np.mean([r.actuation for r in runs]):.2f} K"
-            )
-    finally:
-        env.close()
-    (out / "pid.json").write_text(
-        json.dumps(
-            {
-                "sweep": [{"gains": g, "error": e, "reward": r} for g, e, r in ranked],
-                "best": best,
-                "evaluation": [asdict(r) for r in evaluated],
-                "wall_s": time.perf_counter() - started,
-                "settle_time": env.settle_time,
-                "solid": args.solid,
-                "sweep_on": args.sweep_on,
-                "policies": args.policy,
-            },
-            indent=1,
-        )
-    )
-    print(f"{time.perf_counter() - started:.0f} s; results in {out / 'pid.json'}")
-    print(f"figure: {plot(out / 'pid.json', out / 'pid.png')}")
+def _values(point: str) -> dict[str, float]:
+    """``"kp=3;ki=50;kd=1"`` -> ``{"kp": 3.0, "ki": 50.0, "kd": 1.0}``."""
+    return {k: v[0] for k, v in PID_LAW.parse_grid(point).items()}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Tune the PID, then evaluate it beside the baselines and policies, with the lab's
+    commands (the ``gymprecice`` command line; gymprecice-lab provides them)."""
+    from gymprecice.tools.cli import main as gymprecice
+
+    args = _parser().parse_args(argv)
+    out = Path(args.out)
+
+    def run(command: list[str]) -> int:
+        print(f"$ gymprecice {shlex.join(command)}", flush=True)
+        return gymprecice(command)
+
+    starts = max(1, len([s for s in args.seeds.split(",") if s.strip()]))
+    grid = f"kp={args.kp};ki={args.ki};kd={args.kd}"
+    tune_on = "heated-plate-fast" if args.sweep_on == "fast" else "heated-plate"
+    tune = [
+        "sweep",
+        tune_on,
+        "--starts",
+        "validation",
+        "--episodes",
+        str(starts),
+        "--constants",
+        "0",
+        "--amplitudes=",
+        f"--feedback-grid={grid}",
+        "--out",
+        str(out / "tune"),
+    ]
+    if args.double:
+        tune.append("--double")
+    if args.solid != "openfoam" and tune_on == "heated-plate":
+        tune += ["--env-kwargs", json.dumps({"solid": args.solid})]
+    status = run(tune)
+    if status:
+        return status
+    best = json.loads((out / "tune" / "sweep.json").read_text())["best_feedback"]
+    point = ";".join(f"{name}={float(best[name]):g}" for name in PID_LAW.parameters)
+    print(f"best on the validation starts: {point}", flush=True)
+    for command in lab_commands(args, point):
+        status = run(command)
+        if status:
+            return status
     return 0
 
 

@@ -24,6 +24,12 @@ flap bends and springs back; the agent should keep the flap upright.
 * **Episode end**: truncated at the coupling's ``max-time`` (5 s, 50 steps of 0.1 s with
   the case's ``actions.windows = 10``). There is no terminal state.
 
+``setup="precice"`` runs preCICE's own perpendicular-flap tutorial instead
+(:mod:`.precice_setup`): its fluid mesh and its fluid starting at 10 m/s, with a uniform
+inflow whose speed (m/s, in ``[0, 2 * inlet_max_velocity]``) is the action, 10 m/s to
+begin with. Held at 10 m/s it is the setup whose published tip series
+``python -m gymprecice_tutorials.perpendicular_flap.validate`` compares with.
+
 The env reads the watch point rather than asking preCICE for data: the flap's tip is one
 point of the solid, and preCICE's watch point already interpolates displacement and force
 there. Each observation waits (``watch_timeout`` seconds at most) for the solid's row of
@@ -61,6 +67,7 @@ from gymprecice.core import Adapter
 from gymprecice.fields import Overlay
 from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.perpendicular_flap.packaged_case import SOLIDS, case_files, check_solid
+from gymprecice_tutorials.perpendicular_flap.precice_setup import SETUPS, setup_case_files
 
 #: what the controller may see (``observation=``): the tip now, or with its recent past
 OBSERVATIONS = ("state", "history")
@@ -131,6 +138,7 @@ class PerpendicularFlapEnv(Adapter):
         jet_height: float = 2.0,
         watch_timeout: float = 120.0,
         observation: str = "state",
+        setup: str = "jet",
         run_root: str | Path | None = None,
         **kwargs: Any,
     ) -> None:
@@ -138,21 +146,30 @@ class PerpendicularFlapEnv(Adapter):
             raise ValueError(
                 f"observation must be one of {', '.join(OBSERVATIONS)}, got {observation!r}"
             )
+        if setup not in SETUPS:
+            raise ValueError(f"setup must be one of {', '.join(SETUPS)}, got {setup!r}")
         self.observation = observation
+        self.setup = setup
         self.solid = check_solid(solid)
         if options is None:
-            options = write_case_files(f"perpendicular-flap-{solid}", case_files(solid), run_root)
+            files = (
+                case_files(solid) if setup == "jet" else setup_case_files(solid, inlet_max_velocity)
+            )
+            options = write_case_files(f"perpendicular-flap-{setup}-{solid}", files, run_root)
+        elif setup != "jet":
+            raise ValueError(f"setup={setup!r} makes its own case: give no options with it")
         super().__init__(options, idx, run_root=run_root, **kwargs)
         if not 0.0 < jet_height <= INLET_HEIGHT:
             raise ValueError(f"jet_height must lie in (0, {INLET_HEIGHT}], got {jet_height}")
         self.inlet_max_velocity = float(inlet_max_velocity)
         self.jet_height = float(jet_height)
         self.watch_timeout = float(watch_timeout)
+        if setup == "jet":
+            low, high = jet_height / 2.0, INLET_HEIGHT - jet_height / 2.0
+        else:  # the uniform inflow's speed
+            low, high = 0.0, 2.0 * self.inlet_max_velocity
         self.action_space = gym.spaces.Box(
-            low=np.float32(jet_height / 2.0),
-            high=np.float32(INLET_HEIGHT - jet_height / 2.0),
-            shape=(1,),
-            dtype=np.float32,
+            low=np.float32(low), high=np.float32(high), shape=(1,), dtype=np.float32
         )
         size = 4 + (2 * TIP_HISTORY if observation == "history" else 0)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
@@ -175,6 +192,13 @@ class PerpendicularFlapEnv(Adapter):
 
     def _render_overlay(self) -> Overlay:
         """The jet: where it blows in at the inlet (x = -3 m), and its centre as text."""
+        if self.setup != "jet":
+            speed = self.jet_centre(self.last_action)
+            ys = np.linspace(0.4, INLET_HEIGHT - 0.4, 5)
+            return Overlay(
+                text=[f"uniform inflow {speed:.2f} m/s"],
+                arrows=[(-3.0, float(y), 0.06 * speed, 0.0) for y in ys],
+            )
         centre = self.jet_centre(self.last_action)
         ys = np.linspace(centre - 0.4 * self.jet_height, centre + 0.4 * self.jet_height, 5)
         return Overlay(
@@ -186,6 +210,10 @@ class PerpendicularFlapEnv(Adapter):
     def _get_action(self, action: Any, write_var_list: list) -> dict:
         centre = self.jet_centre(action)
         geometry = self.interface_geometry[self.INLET]
+        if self.setup != "jet":  # preCICE's tutorial: the same speed on every inlet face
+            velocity_x = np.full(len(geometry.coordinates), centre)
+            velocity = np.column_stack([velocity_x, np.zeros_like(velocity_x)])
+            return {ref: velocity for ref in write_var_list}
         velocity_x = jet_profile(
             geometry.coordinates[:, 1],
             centre,
@@ -238,12 +266,16 @@ class PerpendicularFlapEnv(Adapter):
 
     # -- helpers ---------------------------------------------------------------------------
     def _initial_action(self) -> np.ndarray:
-        """Start each episode with the jet in the middle of the inlet, with no past."""
+        """Start each episode with the jet in the middle of the inlet (preCICE's setup:
+        its inflow of ``inlet_max_velocity``), with no past."""
         self._past = np.zeros((TIP_HISTORY, 2), dtype=np.float32)
+        if self.setup != "jet":
+            return np.array([self.inlet_max_velocity], dtype=np.float32)
         return np.array([INLET_HEIGHT / 2.0], dtype=np.float32)
 
     def jet_centre(self, action: Any) -> float:
-        """The jet centre an action asks for, clipped to the action space."""
+        """The jet centre an action asks for (preCICE's setup: the inflow speed), clipped
+        to the action space."""
         value = float(np.asarray(action, dtype=float).reshape(-1)[0])
         return float(np.clip(value, self.action_space.low[0], self.action_space.high[0]))
 
