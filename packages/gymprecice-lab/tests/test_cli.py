@@ -14,6 +14,7 @@ import pytest
 
 from gymprecice.cli import build_parser, main
 from gymprecice_lab import hyperparams, manifest, requirements
+from gymprecice_lab.cli.settings import from_argv
 from gymprecice_lab.env_kwargs import build_env_kwargs
 from gymprecice_lab.lab_env import LabEnvError, find_lab_env, lab_envs
 
@@ -242,14 +243,14 @@ def test_top_level_help_and_every_command_help_format(capsys):
 
 
 def test_rollouts_default_to_the_environments_own_horizon(tmp_path):
-    parser = build_parser()
     out = tmp_path / "out"
-    quick = parser.parse_args(["baseline", "quickstart", "--double"])
-    jet = parser.parse_args(["baseline", "jet-cylinder", "--double"])
+    quick = from_argv(["baseline", "quickstart", "--double"])
+    jet = from_argv(["baseline", "jet-cylinder", "--double"])
     assert build_env_kwargs(quick, ENVIRONMENTS["quickstart"], out)["episode_time"] == 2.0
     assert build_env_kwargs(jet, ENVIRONMENTS["jet-cylinder"], out)["episode_time"] == 10.0
-    trained = parser.parse_args(["train", "quickstart", "--double"])
+    trained = from_argv(["train", "quickstart", "--double", "--out", str(out)])
     assert "episode_time" not in build_env_kwargs(trained, ENVIRONMENTS["quickstart"], out)
+    assert trained.constructor_kwargs == build_env_kwargs(trained, trained.lab_env, out)
 
 
 def test_without_solvers_and_without_double_one_line_suggests_double(tmp_path, monkeypatch, capsys):

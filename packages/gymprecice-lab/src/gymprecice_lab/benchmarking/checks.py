@@ -9,13 +9,14 @@ raise it too: a failed seed, a settings clash on a resume, an unreachable cluste
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import shlex
 from collections.abc import Sequence
 
 import gymnasium as gym
 import numpy as np
 
+from gymprecice_lab.benchmarking.command_settings import BenchmarkSettings
 from gymprecice_lab.common.command_runs import CommandFailed
 from gymprecice_lab.common.registered_env import LabEnv
 from gymprecice_lab.training.hyperparams import ALGORITHMS
@@ -126,45 +127,52 @@ def check_baselines_fit(space: gym.Space) -> None:
 DEFAULT_FEEDBACK_GAINS = "-2,-1,1,2"
 
 
-def resolve_feedback(args: argparse.Namespace, env: LabEnv) -> None:
-    """Fill in the feedback baseline's defaults in ``args``: the lift's gains for an env
-    fed back a signal; the grid of the env's own law (``--feedback-grid``, its documented
-    grid unless given, written out so that ``benchmark.json`` records every point) for one
-    that names a law. The other kind's options are refused rather than ignored."""
+def resolve_feedback(benchmark: BenchmarkSettings, env: LabEnv) -> BenchmarkSettings:
+    """``benchmark`` with the feedback baseline's defaults filled in: the lift's gains for
+    an env fed back a signal; the grid of the env's own law (``--feedback-grid``, its
+    documented grid unless given, written out so that ``benchmark.json`` records every
+    point) for one that names a law. The other kind's options are refused rather than
+    ignored."""
     from gymprecice_lab.rollouts.feedback import own_law_grid
 
     try:
         law, grid = own_law_grid(
-            env.name, env.feedback_law, args.feedback_gains, args.feedback_grid
+            env.name, env.feedback_law, benchmark.feedback_gains, benchmark.feedback_grid
         )
     except ValueError as exc:
         raise BenchmarkError(str(exc)) from None
     if law is None:
-        if args.feedback_gains is None:
-            # no signal to feed back (card field 'feedback_signal'): no feedback baseline
-            has_signal = args.feedback_signal or env.feedback_signal
-            args.feedback_gains = DEFAULT_FEEDBACK_GAINS if has_signal else ""
-        return
-    args.feedback_gains = ""
-    args.feedback_grid = law.grid_text(grid) if grid is not None else ""
+        if benchmark.feedback_gains is not None:
+            return benchmark
+        # no signal to feed back (card field 'feedback_signal'): no feedback baseline
+        has_signal = benchmark.feedback_signal or env.feedback_signal
+        gains = DEFAULT_FEEDBACK_GAINS if has_signal else ""
+        return dataclasses.replace(benchmark, feedback_gains=gains)
+    return dataclasses.replace(
+        benchmark,
+        feedback_gains="",
+        feedback_grid=law.grid_text(grid) if grid is not None else "",
+    )
 
 
-def check_grids(args: argparse.Namespace, env: LabEnv) -> None:
+def check_grids(benchmark: BenchmarkSettings, env: LabEnv) -> None:
     """The sweep's grids, checked now rather than after every seed has trained."""
     from gymprecice_lab.rollouts.sweep import parse_grid
 
-    if args.amplitudes.strip():  # empty: no sinusoids
-        parse_grid(args.amplitudes, "amplitudes")
-    if not 0.0 <= args.centre <= 1.0:
-        raise BenchmarkError(f"--centre is a fraction of the action box, 0 to 1; got {args.centre}")
-    if any(f <= 0 for f in parse_grid(args.frequencies, "frequencies")):
+    if benchmark.amplitudes.strip():  # empty: no sinusoids
+        parse_grid(benchmark.amplitudes, "amplitudes")
+    if not 0.0 <= benchmark.centre <= 1.0:
+        raise BenchmarkError(
+            f"--centre is a fraction of the action box, 0 to 1; got {benchmark.centre}"
+        )
+    if any(f <= 0 for f in parse_grid(benchmark.frequencies, "frequencies")):
         raise BenchmarkError("--frequencies must be positive (Hz)")
-    if args.feedback_gains:
-        parse_grid(args.feedback_gains, "feedback-gains")
-        delays = parse_grid(args.feedback_delays, "feedback-delays")
+    if benchmark.feedback_gains:
+        parse_grid(benchmark.feedback_gains, "feedback-gains")
+        delays = parse_grid(benchmark.feedback_delays, "feedback-delays")
         if any(d < 0 or d != int(d) for d in delays):
             raise BenchmarkError("--feedback-delays are whole numbers of actions >= 0")
-        if not (args.feedback_signal or env.feedback_signal):
+        if not (benchmark.feedback_signal or env.feedback_signal):
             raise BenchmarkError(
                 f"{env.name} has no default feedback signal; pass --feedback-signal NAME "
                 "(one of the metrics in its steps' info['metrics']) or --feedback-gains '' "

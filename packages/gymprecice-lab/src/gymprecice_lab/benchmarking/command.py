@@ -48,7 +48,6 @@ command's error (:mod:`~gymprecice_lab.benchmarking.checks`), the sub-commands' 
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 from dataclasses import dataclass
@@ -67,6 +66,7 @@ from gymprecice_lab.benchmarking.checks import (
     parse_train_args,
     resolve_feedback,
 )
+from gymprecice_lab.benchmarking.command_settings import BenchmarkSettings
 from gymprecice_lab.benchmarking.dispatch import check_ray, run_everywhere, solver_cpus, sweep_cpus
 from gymprecice_lab.benchmarking.remote_commands import RemoteCommand
 from gymprecice_lab.benchmarking.scores import controller_entry, start_scores
@@ -78,9 +78,10 @@ from gymprecice_lab.benchmarking.seed_training import (
 )
 from gymprecice_lab.benchmarking.settings import lock_settings, settings_of
 from gymprecice_lab.benchmarking.tables import write_tables
-from gymprecice_lab.common.command_runs import evaluated, parse_command, run_in_pool
+from gymprecice_lab.cli.settings import from_argv
+from gymprecice_lab.common.command_runs import evaluated, run_in_pool
 from gymprecice_lab.common.constructor_kwargs import build_env_kwargs
-from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, default_out, find_lab_env
+from gymprecice_lab.common.registered_env import LabEnv, LabEnvError
 from gymprecice_lab.common.starts import describe_starts
 from gymprecice_lab.training.hyperparams import hyperparameters
 
@@ -89,9 +90,11 @@ __all__ = ["benchmark_command"]
 
 @dataclass(frozen=True)
 class _Plan:
-    """What the checks settled before anything trains: the env, the algorithms and their
-    extra training flags, where it all goes, the held-out starts and one env's CPUs."""
+    """What the checks settled before anything trains: the settings with the feedback
+    baseline's defaults filled in, the env, the algorithms and their extra training flags,
+    where it all goes, the held-out starts and one env's CPUs."""
 
+    settings: BenchmarkSettings
     env: LabEnv
     algos: list[str]
     extra: dict[str, list[str]]
@@ -104,19 +107,20 @@ class _Plan:
         return self.out / kind / algo / f"seed_{seed}"
 
 
-def benchmark_command(args: argparse.Namespace) -> int:
+def benchmark_command(settings: BenchmarkSettings) -> int:
     """``gymprecice benchmark ENV --seeds N --algo ppo[,sac] ...``."""
     from gymprecice_lab.common.manifest import write_manifest
 
-    plan = _plan(args)
+    plan = _plan(settings)
     if isinstance(plan, int):
         return plan  # the solvers are missing: the doctor said what
-    settings = settings_of(args, plan.env, plan.algos, plan.extra)
-    settings["held_out_starts"] = list(plan.starts)
-    lock_settings(plan.out, settings, args.fresh)
+    settings = plan.settings  # the feedback baseline's defaults filled in
+    recorded = settings_of(settings, plan.env, plan.algos, plan.extra)
+    recorded["held_out_starts"] = list(plan.starts)
+    lock_settings(plan.out, recorded, settings.fresh)
     print(
         f"gymprecice benchmark: {plan.env.name}: {', '.join(a.upper() for a in plan.algos)} x "
-        f"{args.seeds} seed(s), {args.timesteps:,} steps each, evaluated from "
+        f"{settings.seeds} seed(s), {settings.timesteps:,} steps each, evaluated from "
         f"{describe_starts(len(plan.starts), plan.env.held_out_starts)}; output in {plan.out}",
         flush=True,
     )
@@ -128,63 +132,64 @@ def benchmark_command(args: argparse.Namespace) -> int:
             "runs this protocol there at a fraction of the cost",
             flush=True,
         )
-    _train_seeds(args, plan)  # 1. every seed (with --ray: at once, its envs on the cluster)
-    controllers = _evaluate_seeds(args, plan)  # 2. from every held-out start
-    if not args.no_baselines:
-        controllers += _baselines(args, plan)  # 3. the classical ones, on the same starts
-    _write_results(args, plan, controllers)  # 4. tables and figures
+    _train_seeds(settings, plan)  # 1. every seed (with --ray: at once, its envs on the cluster)
+    controllers = _evaluate_seeds(settings, plan)  # 2. from every held-out start
+    if not settings.no_baselines:
+        controllers += _baselines(settings, plan)  # 3. the classical ones, on the same starts
+    _write_results(settings, plan, controllers)  # 4. tables and figures
     write_manifest(
-        plan.out, command="benchmark", settings=settings, seeds={"seeds": settings["seeds"]}
+        plan.out, command="benchmark", settings=recorded, seeds={"seeds": recorded["seeds"]}
     )
     return 0
 
 
-def _plan(args: argparse.Namespace) -> _Plan | int:
+def _plan(settings: BenchmarkSettings) -> _Plan | int:
     """Everything that can be refused, refused before anything trains (an exit status
     where the solvers are missing)."""
     try:
-        env = find_lab_env(args.env)
+        env = settings.lab_env
     except LabEnvError as exc:
         raise BenchmarkError(str(exc)) from None
-    algos = parse_algorithms(args.algo)
-    extra = parse_train_args(args.train_args, algos)
-    out = (args.out or default_out(env, "benchmark")).resolve()
-    resolve_feedback(args, env)
-    if not args.double:
+    algos = parse_algorithms(settings.algo)
+    extra = parse_train_args(settings.train_args, algos)
+    out = settings.run_dir
+    settings = resolve_feedback(settings, env)
+    if not settings.double:
         from gymprecice_lab.common.requirements import require_solvers
 
         status = require_solvers(
-            env, "benchmark", verbose=args.require_solvers, kwargs=args.env_kwargs
+            env, "benchmark", verbose=settings.require_solvers, kwargs=settings.env_kwargs
         )
         if status:
             return status
-    for algo in algos:
-        hyperparameters(
-            parse_command(train_argv(args, algo, 0, out / "check", extra[algo])), env, out
-        )
-    starts, space, env_cpus = _probe(args, env, out)
+    for algo in algos:  # a flag the algorithm does not take, refused now
+        hyperparameters(from_argv(train_argv(settings, algo, 0, out / "check", extra[algo])), env)
+    starts, space, env_cpus = _probe(settings, env, out)
     for algo in algos:
         check_algorithm_fits(algo, space)
-    if not args.no_baselines:
+    if not settings.no_baselines:
         check_baselines_fit(space)
-        check_grids(args, env)
-    if args.ray:
+        check_grids(settings, env)
+    if settings.ray:
         needs = [("an evaluation", env_cpus)]
-        if not args.no_baselines:
+        if not settings.no_baselines:
             needs.append(
-                (f"the baselines' sweep (--workers {args.workers})", sweep_cpus(args, env_cpus))
+                (
+                    f"the baselines' sweep (--workers {settings.workers})",
+                    sweep_cpus(settings.workers, env_cpus),
+                )
             )
-        check_ray(args.ray, needs)
-    return _Plan(env, algos, extra, out, list(starts), env_cpus)
+        check_ray(settings.ray, needs)
+    return _Plan(settings, env, algos, extra, out, list(starts), env_cpus)
 
 
-def _probe(args: argparse.Namespace, env: LabEnv, out: Path) -> tuple[Any, gym.Space, float]:
+def _probe(settings: BenchmarkSettings, env: LabEnv, out: Path) -> tuple[Any, gym.Space, float]:
     """The evaluation's env, built (no solver starts before a reset) to read its held-out
     starts (else seeds), its action space and its solvers' CPUs; nothing is left on disk."""
     from gymprecice_lab.common.starts import StartsError, evaluation_starts
     from gymprecice_lab.common.wrapped_env import make_env_checked
 
-    rollout = parse_command(["baseline", args.env, *common_options(args, args.eval_time)])
+    rollout = from_argv(["baseline", settings.env, *common_options(settings, settings.eval_time)])
     try:
         kwargs = build_env_kwargs(rollout, env, out / "check")
         probe = make_env_checked(env.name, env.env_id, 0, kwargs, rescale=False)
@@ -198,24 +203,24 @@ def _probe(args: argparse.Namespace, env: LabEnv, out: Path) -> tuple[Any, gym.S
         shutil.rmtree(out / "check", ignore_errors=True)
 
 
-def _train_seeds(args: argparse.Namespace, plan: _Plan) -> None:
+def _train_seeds(settings: BenchmarkSettings, plan: _Plan) -> None:
     """Train every seed not trained already (a seed cut short resumes)."""
     jobs: list[tuple[tuple[Any, ...], str]] = []
     for algo in plan.algos:
-        for seed in range(args.seeds):
+        for seed in range(settings.seeds):
             run = plan.run("train", algo, seed)
             label = f"{algo} seed {seed}"
-            if trained(run, args.timesteps):
+            if trained(run, settings.timesteps):
                 print(f"gymprecice benchmark: {label}: trained already, kept", flush=True)
                 continue
-            argv = train_argv(args, algo, seed, run, plan.extra[algo])
-            if args.ray:
-                argv += ["--ray", args.ray]
-            jobs.append(((argv, str(run), label, args.retries), label))
-    if args.ray and len(jobs) > 1:
+            argv = train_argv(settings, algo, seed, run, plan.extra[algo])
+            if settings.ray:
+                argv += ["--ray", settings.ray]
+            jobs.append(((argv, str(run), label, settings.retries), label))
+    if settings.ray and len(jobs) > 1:
         print(
             f"gymprecice benchmark: training {len(jobs)} seed(s) at once, their envs as Ray "
-            f"actors on the cluster at {args.ray}",
+            f"actors on the cluster at {settings.ray}",
             flush=True,
         )
         run_in_pool(worker_train_seed, jobs, len(jobs))
@@ -224,7 +229,7 @@ def _train_seeds(args: argparse.Namespace, plan: _Plan) -> None:
             train_seed(argv, Path(run), label, retries)
 
 
-def _evaluate_seeds(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any]]:
+def _evaluate_seeds(settings: BenchmarkSettings, plan: _Plan) -> list[dict[str, Any]]:
     """Evaluate each seed's kept model (the best of its validations) and, where it is
     another file, its final model, from every held-out start (those not evaluated
     already); per algorithm a controller entry over the seeds for each.
@@ -236,7 +241,7 @@ def _evaluate_seeds(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any
 
     pending: list[RemoteCommand] = []
     for algo in plan.algos:
-        for seed in range(args.seeds):
+        for seed in range(settings.seeds):
             train_dir = plan.run("train", algo, seed)
             seen: set[Path] = set()
             for which, run in _evaluations(plan, algo, seed):
@@ -248,11 +253,11 @@ def _evaluate_seeds(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any
                     RemoteCommand(
                         [
                             "evaluate",
-                            args.env,
+                            settings.env,
                             "--all-starts",
                             "--model",
                             which,
-                            *common_options(args, args.eval_time),
+                            *common_options(settings, settings.eval_time),
                         ],
                         run,
                         f"evaluating {algo} seed {seed}"
@@ -261,7 +266,7 @@ def _evaluate_seeds(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any
                         cpus=plan.env_cpus,
                     )
                 )
-    run_everywhere(pending, args)
+    run_everywhere(pending, settings.ray, settings.workers)
     controllers = []
     for algo in plan.algos:
         label = _learned_label(algo, plan.run("train", algo, 0))
@@ -272,15 +277,20 @@ def _evaluate_seeds(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any
                     plan.env,
                     len(plan.starts),
                 )
-                for seed in range(args.seeds)
+                for seed in range(settings.seeds)
             ]
             for which in ("kept", "final")
         }
-        controllers.append(controller_entry(label, "learned", runs["kept"], args.bootstrap_reps))
+        controllers.append(
+            controller_entry(label, "learned", runs["kept"], settings.bootstrap_reps)
+        )
         if runs["final"] != runs["kept"]:
             controllers.append(
                 controller_entry(
-                    f"{label}, final model", "learned, final", runs["final"], args.bootstrap_reps
+                    f"{label}, final model",
+                    "learned, final",
+                    runs["final"],
+                    settings.bootstrap_reps,
                 )
             )
     return controllers
@@ -311,18 +321,18 @@ def _learned_label(algo: str, train_dir: Path) -> str:
     return f"{algo.upper()}, shared policy" if shared else algo.upper()
 
 
-def _baselines(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any]]:
+def _baselines(settings: BenchmarkSettings, plan: _Plan) -> list[dict[str, Any]]:
     """Sweep the classical controllers on the same starts (unless swept already); the
     uncontrolled flow and the best of each kind, as controller entries."""
     sweep_dir = plan.out / "baselines"
     if not (sweep_dir / "sweep.json").is_file():
         sweep = RemoteCommand(
-            sweep_argv(args, len(plan.starts), bool(plan.env.feedback_law)),
+            sweep_argv(settings, len(plan.starts), bool(plan.env.feedback_law)),
             sweep_dir,
             "the baselines' sweep",
-            cpus=sweep_cpus(args, plan.env_cpus),
+            cpus=sweep_cpus(settings.workers, plan.env_cpus),
         )
-        run_everywhere([sweep], args, one_at_a_time=True)
+        run_everywhere([sweep], settings.ray, settings.workers, one_at_a_time=True)
     swept = json.loads((sweep_dir / "sweep.json").read_text())
     chosen = [("uncontrolled", "uncontrolled", None)]
     for kind in ("constant", "sinusoid", "feedback"):
@@ -338,7 +348,7 @@ def _baselines(args: argparse.Namespace, plan: _Plan) -> list[dict[str, Any]]:
                     _summary(sweep_dir / (label or "uncontrolled")), plan.env, len(plan.starts)
                 )
             ],
-            args.bootstrap_reps,
+            settings.bootstrap_reps,
         )
         for title, kind, label in chosen
     ]
@@ -348,7 +358,7 @@ def _summary(run: Path) -> dict[str, Any]:
     return json.loads((run / "summary.json").read_text())
 
 
-def _write_results(args: argparse.Namespace, plan: _Plan, controllers: list[dict]) -> None:
+def _write_results(settings: BenchmarkSettings, plan: _Plan, controllers: list[dict]) -> None:
     """``results.md``/``.csv``/``.json`` and the two figures; the table said."""
     from gymprecice_lab.benchmarking.plots import plot_objective_per_start, plot_return_wallclock
 
@@ -356,10 +366,10 @@ def _write_results(args: argparse.Namespace, plan: _Plan, controllers: list[dict
     seeds = {
         f"{algo.upper()} seed {seed}": restarts(plan.run("train", algo, seed))
         for algo in plan.algos
-        for seed in range(args.seeds)
+        for seed in range(settings.seeds)
     }
     write_tables(out, plan.env, plan.starts, controllers, seeds)
-    plot_return_wallclock(out, plan.algos, args.seeds)
+    plot_return_wallclock(out, plan.algos, settings.seeds)
     plot_objective_per_start(
         out / "objective_per_start.png",
         plan.starts,

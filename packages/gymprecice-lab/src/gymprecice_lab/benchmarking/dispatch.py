@@ -9,7 +9,6 @@ trains, so the CPUs of one env's solvers are measured here too.
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Sequence
 
 import gymnasium as gym
@@ -28,28 +27,28 @@ def solver_cpus(env: gym.Env) -> float:
     return float(getattr(config, "solver_cpus", 0) or 1)
 
 
-def sweep_cpus(args: argparse.Namespace, env_cpus: float) -> float:
-    """The sweep's ``--workers`` envs at once, on one node."""
-    return max(1, args.workers) * env_cpus
+def sweep_cpus(workers: int, env_cpus: float) -> float:
+    """The sweep's ``--workers`` (``workers``) envs at once, on one node."""
+    return max(1, workers) * env_cpus
 
 
 def run_everywhere(
-    commands: list[RemoteCommand], args: argparse.Namespace, one_at_a_time: bool = False
+    commands: list[RemoteCommand], ray: str | None, workers: int, one_at_a_time: bool = False
 ) -> None:
     """Run ``commands`` on the cluster with ``--ray`` (Ray tasks that ship their inputs and
-    bring their outputs back), else here, ``--workers`` at once (``one_at_a_time``: a
-    command that spreads its own work over ``--workers``)."""
-    if args.ray:
+    bring their outputs back) at ``ray`` (``--ray``), else here, ``workers`` at once
+    (``one_at_a_time``: a command that spreads its own work over ``--workers``)."""
+    if ray:
         from gymprecice_lab.benchmarking.remote_commands import RemoteCommandError
         from gymprecice_lab.benchmarking.remote_commands import run_commands as run_remote_commands
 
         try:
-            run_remote_commands(commands, args.ray)
+            run_remote_commands(commands, ray)
         except RemoteCommandError as exc:
             raise BenchmarkError(str(exc), 1) from None
         return
     local = [([*c.argv, *_input_options(c), "--out", str(c.out)], c.what) for c in commands]
-    run_commands(local, 1 if one_at_a_time else args.workers)
+    run_commands(local, 1 if one_at_a_time else workers)
 
 
 def _input_options(command: RemoteCommand) -> list[str]:

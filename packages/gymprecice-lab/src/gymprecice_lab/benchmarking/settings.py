@@ -10,7 +10,6 @@ existed is read with the value it ran with.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import shutil
@@ -18,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice_lab.benchmarking.checks import BenchmarkError
+from gymprecice_lab.benchmarking.command_settings import BenchmarkSettings
 from gymprecice_lab.common.registered_env import LabEnv
 
 __all__ = ["SETTINGS_NAME", "lock_settings", "settings_of"]
@@ -25,34 +25,35 @@ __all__ = ["SETTINGS_NAME", "lock_settings", "settings_of"]
 SETTINGS_NAME = "benchmark.json"
 
 
-def settings_of(args: argparse.Namespace, env: LabEnv, algos: list[str], extra: dict) -> dict:
-    """Everything that decides the benchmark's numbers (compared on a resume)."""
+def settings_of(benchmark: BenchmarkSettings, env: LabEnv, algos: list[str], extra: dict) -> dict:
+    """Everything that decides the benchmark's numbers (compared on a resume), of the
+    command's settings (its feedback defaults filled in) and what its checks settled."""
     return {
         "env": env.name,
         "env_id": env.env_id,
         "algos": algos,
-        "seeds": list(range(args.seeds)),
-        "timesteps": args.timesteps,
-        "n_envs": args.n_envs,
+        "seeds": list(range(benchmark.seeds)),
+        "timesteps": benchmark.timesteps,
+        "n_envs": benchmark.n_envs,
         "train_args": extra,
-        "episode_time": args.episode_time,
-        "eval_time": args.eval_time,
-        "env_kwargs": args.env_kwargs or {},
-        "double": bool(args.double),
+        "episode_time": benchmark.episode_time,
+        "eval_time": benchmark.eval_time,
+        "env_kwargs": benchmark.env_kwargs or {},
+        "double": bool(benchmark.double),
         "baselines": None
-        if args.no_baselines
+        if benchmark.no_baselines
         else {
-            "constants": args.constants,
-            "amplitudes": args.amplitudes,
-            "frequencies": args.frequencies,
-            "centre": args.centre,
-            "feedback_gains": args.feedback_gains,
-            "feedback_delays": args.feedback_delays,
-            "feedback_signal": args.feedback_signal,
+            "constants": benchmark.constants,
+            "amplitudes": benchmark.amplitudes,
+            "frequencies": benchmark.frequencies,
+            "centre": benchmark.centre,
+            "feedback_gains": benchmark.feedback_gains,
+            "feedback_delays": benchmark.feedback_delays,
+            "feedback_signal": benchmark.feedback_signal,
             # only where the env has a law: a benchmark.json written before resumes
-            **({"feedback_grid": args.feedback_grid} if env.feedback_law else {}),
+            **({"feedback_grid": benchmark.feedback_grid} if env.feedback_law else {}),
         },
-        "bootstrap_reps": args.bootstrap_reps,
+        "bootstrap_reps": benchmark.bootstrap_reps,
     }
 
 

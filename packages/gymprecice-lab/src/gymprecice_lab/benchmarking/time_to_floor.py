@@ -27,7 +27,6 @@ than every run that did, and the interval is then left open.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
@@ -41,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from gymprecice.card import Reference
+from gymprecice_lab.benchmarking.command_settings import TimeToFloorSettings
 from gymprecice_lab.common.command_runs import CommandFailed, evaluated, run_commands
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env
 from gymprecice_lab.rollouts.records import episodes_by_start
@@ -315,42 +315,42 @@ def _trained_env(run: Path) -> str:
         ) from None
 
 
-def time_to_floor_command(args: argparse.Namespace) -> int:
+def time_to_floor_command(settings: TimeToFloorSettings) -> int:
     """``gymprecice time-to-floor RUN [RUN ...] [--env ENV]``."""
     from gymprecice_lab.rollouts.sweep import parse_grid
 
     try:
-        env = find_lab_env(args.env or _trained_env(args.runs[0]))
+        env = find_lab_env(settings.env or _trained_env(settings.runs[0]))
         floor = env.require("reference", "time-to-floor")
     except LabEnvError as exc:
         print(f"gymprecice time-to-floor: {exc}", file=sys.stderr)
         return 2
-    fractions = parse_grid(args.fractions, "fractions")
+    fractions = parse_grid(settings.fractions, "fractions")
     if not all(0 < f <= 1.5 for f in fractions):
         print(
             "gymprecice time-to-floor: --fractions are fractions of the floor, e.g. 0.9,0.95",
             file=sys.stderr,
         )
         return 2
-    if args.eval_time <= floor.settle_time:
+    if settings.eval_time <= floor.settle_time:
         print(
-            f"gymprecice time-to-floor: --eval-time {args.eval_time:g} leaves no settled flow "
+            f"gymprecice time-to-floor: --eval-time {settings.eval_time:g} leaves no settled flow "
             f"after {floor.settle_time:g} s of transient; give more",
             file=sys.stderr,
         )
         return 2
-    if not args.double:
+    if not settings.double:
         from gymprecice_lab.common.requirements import require_solvers
 
         status = require_solvers(env, "time-to-floor", verbose=False)
         if status:
             return status
-    out = (args.out or (args.runs[0] / "time-to-floor")).resolve()
+    out = (settings.out or (settings.runs[0] / "time-to-floor")).resolve()
     scans = []
-    for i, run in enumerate(args.runs):
+    for i, run in enumerate(settings.runs):
         run = run.resolve()
         # each run's evaluations under its own name: a later scan of more runs reuses them
-        unique = len({r.resolve().name for r in args.runs}) == len(args.runs)
+        unique = len({r.resolve().name for r in settings.runs}) == len(settings.runs)
         where = out / (run.name if unique else f"run_{i}")
         try:
             scan = scan_run(
@@ -358,10 +358,10 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
                 env,
                 where,
                 fractions=fractions,
-                eval_time=args.eval_time,
-                workers=args.workers,
-                double=args.double,
-                which=args.model,
+                eval_time=settings.eval_time,
+                workers=settings.workers,
+                double=settings.double,
+                which=settings.model,
             )
         except CommandFailed as exc:  # an evaluation failed; it said why
             return int(exc.code or 1)
@@ -369,8 +369,8 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
             print(f"gymprecice time-to-floor: {run}: {exc}", file=sys.stderr)
             return 2
         scans.append(scan)
-        if args.model != "checkpoints":
-            _say_model(run, scan, args.model)
+        if settings.model != "checkpoints":
+            _say_model(run, scan, settings.model)
         _say_first(run, scan, fractions)
     summary = summarise(scans, fractions)
     _write(
@@ -380,8 +380,8 @@ def time_to_floor_command(args: argparse.Namespace) -> int:
         {
             "env": env.name,
             "fractions": fractions,
-            "eval_time": args.eval_time,
-            "model": args.model,
+            "eval_time": settings.eval_time,
+            "model": settings.model,
             "floor": asdict(floor),
         },
     )

@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 from gymprecice_lab.cli.options import Option
+from gymprecice_lab.cli.settings import from_namespace
 
 __all__ = ["Command", "run"]
 
@@ -35,45 +36,47 @@ _IMPORTS_FIRST: dict[str, tuple[str, ...]] = {
 
 
 def run(command: str, args: argparse.Namespace) -> int:
-    """Run ``command``: its optional modules first, then its work, imported now."""
+    """Run ``command``: its optional modules first, then its work, imported now, given the
+    command's settings (:func:`gymprecice_lab.cli.settings.from_namespace`), not ``args``."""
     for module in _IMPORTS_FIRST.get(command, ()):
         importlib.import_module(module)
+    if command == "policies":  # no options
+        from gymprecice_lab.policies.shipped import list_command
+
+        return list_command()
+    settings = from_namespace(command, args)
     if command == "train":
         from gymprecice_lab.training.train import train_command
 
-        return train_command(args)
+        return train_command(settings)
     if command == "tune":
         from gymprecice_lab.training.tune import tune_command
 
-        return tune_command(args)
+        return tune_command(settings)
     if command in ("evaluate", "baseline", "open-loop", "feedback"):
         from gymprecice_lab.rollouts.evaluate import rollout_command
 
-        return rollout_command(command, args)
+        return rollout_command(settings)
     if command == "sweep":
         from gymprecice_lab.rollouts.sweep import sweep_command
 
-        return sweep_command(args)
+        return sweep_command(settings)
     if command == "compare":
         from gymprecice_lab.rollouts.compare import compare_command
 
-        return compare_command(args)
+        return compare_command(settings)
     if command == "benchmark":
         from gymprecice_lab.benchmarking.command import benchmark_command
 
-        return benchmark_command(args)
+        return benchmark_command(settings)
     if command == "time-to-floor":
         from gymprecice_lab.benchmarking.time_to_floor import time_to_floor_command
 
-        return time_to_floor_command(args)
+        return time_to_floor_command(settings)
     if command == "plot":
         from gymprecice_lab.rollouts.plots import plot_command
 
-        return plot_command(args)
-    if command == "ship-policy":
-        from gymprecice_lab.policies.ship import ship_command
+        return plot_command(settings)
+    from gymprecice_lab.policies.ship import ship_command
 
-        return ship_command(args)
-    from gymprecice_lab.policies.shipped import list_command
-
-    return list_command(args)
+    return ship_command(settings)

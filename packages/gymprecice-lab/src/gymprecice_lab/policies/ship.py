@@ -13,7 +13,6 @@ or not at all.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import shutil
@@ -26,6 +25,7 @@ from typing import Any
 
 from gymprecice_lab.common.kept_model import KEPT_MODEL, read_kept
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env
+from gymprecice_lab.policies.command_settings import ShipSettings
 from gymprecice_lab.policies.fitted_env import MACHINE_KWARGS, describe_env
 from gymprecice_lab.policies.policy import (
     FORMAT,
@@ -338,17 +338,17 @@ def _evaluation_record(run: Path, model_sha: str) -> dict[str, Any]:
 # -- the command -----------------------------------------------------------------------------
 
 
-def ship_command(args: argparse.Namespace) -> int:
+def ship_command(settings: ShipSettings) -> int:
     """``gymprecice ship-policy TRAIN_DIR [--name NAME] [--evaluation RUN]``."""
     try:
         dest = ship_policy(
-            args.train_dir,
-            args.name,
-            evaluation=args.evaluation,
-            directory=args.into,
-            force=args.force,
-            checkpoint=args.checkpoint,
-            which=args.model,
+            settings.train_dir,
+            settings.name,
+            evaluation=settings.evaluation,
+            directory=settings.into,
+            force=settings.force,
+            checkpoint=settings.checkpoint,
+            which=settings.model,
         )
     except PolicyError as exc:
         print(f"gymprecice ship-policy: {exc}", file=sys.stderr)

@@ -29,7 +29,6 @@ directory than the packages': tests ship into a temporary one.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 from pathlib import Path
@@ -310,8 +309,8 @@ def _objective(env_name: str) -> str | None:
         return None
 
 
-def list_command(args: argparse.Namespace) -> int:
-    """``gymprecice policies``: one line per shipped policy."""
+def list_command() -> int:
+    """``gymprecice policies`` (it takes no option): one line per shipped policy."""
     policies = shipped_policies()
     if not policies:
         where = ", ".join(str(p) for p in policy_folders()) or "no installed package's card"

@@ -23,7 +23,6 @@ uncontrolled flow (a ``baseline`` run made with ``--video``) beside each control
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import sys
@@ -34,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from gymprecice_lab.common.registered_env import LabEnv, find_lab_env
+from gymprecice_lab.rollouts.command_settings import CompareSettings
 from gymprecice_lab.rollouts.video import VideoError, check_video_path, side_by_side
 
 __all__ = [
@@ -256,20 +256,20 @@ def _margins(
     return lines, margins
 
 
-def compare_command(args: argparse.Namespace) -> int:
+def compare_command(settings: CompareSettings) -> int:
     """``gymprecice compare RUN... [--out DIR]``."""
-    missing = [str(r) for r in args.runs if not r.is_dir()]
+    missing = [str(r) for r in settings.runs if not r.is_dir()]
     if missing:
         print(f"gymprecice compare: no such run directory: {', '.join(missing)}", file=sys.stderr)
         return 2
-    video = getattr(args, "video", None)
+    video = settings.video
     if video is not None:
         try:
             check_video_path(video)
         except VideoError as exc:
             print(f"gymprecice compare: {exc}", file=sys.stderr)
             return 2
-    env, candidates, evaluated = read_runs(list(args.runs))
+    env, candidates, evaluated = read_runs(list(settings.runs))
     references = [
         ref
         for ref in (
@@ -299,7 +299,7 @@ def compare_command(args: argparse.Namespace) -> int:
             "margins": margins,
         }
     text = "\n".join(lines) + "\n"
-    out = args.out or Path(args.runs[0]).parent / "compare"
+    out = settings.out or Path(settings.runs[0]).parent / "compare"
     out.mkdir(parents=True, exist_ok=True)
     (out / "compare.md").write_text(text)
     (out / "compare.json").write_text(json.dumps(record, indent=2) + "\n")
@@ -307,7 +307,7 @@ def compare_command(args: argparse.Namespace) -> int:
     print(f"gymprecice compare: wrote {out / 'compare.md'} and compare.json")
     if video is not None:
         try:
-            videos = side_by_side_videos(list(args.runs), video)
+            videos = side_by_side_videos(list(settings.runs), video)
         except VideoError as exc:
             print(f"gymprecice compare: {exc}", file=sys.stderr)
             return 2

@@ -57,7 +57,6 @@ transfer, said in one line); see :mod:`gymprecice_lab.policies.shipped` and
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -66,14 +65,12 @@ from typing import Any
 import gymnasium as gym
 
 from gymprecice.card import FeedbackLaw
-from gymprecice_lab.common.constructor_kwargs import build_env_kwargs
 from gymprecice_lab.common.manifest import file_sha256, read_manifest, write_manifest
 from gymprecice_lab.common.registered_env import (
     LabEnv,
     LabEnvError,
     default_frequency,
     default_out,
-    find_lab_env,
 )
 from gymprecice_lab.common.requirements import require_solvers
 from gymprecice_lab.common.starts import StartsError, evaluation_starts, held_out_starts
@@ -87,6 +84,7 @@ from gymprecice_lab.common.wrapping import WrapError, wrap_spec
 from gymprecice_lab.policies.fitted_env import check_policy_env, policy_env_kwargs
 from gymprecice_lab.policies.policy import Policy, PolicyError
 from gymprecice_lab.policies.shipped import resolve_policy, shipped_policies
+from gymprecice_lab.rollouts.command_settings import RolloutSettings
 from gymprecice_lab.rollouts.controllers import (
     Controller,
     law_point,
@@ -123,14 +121,14 @@ __all__ = [
 ]
 
 
-def _policy(args: argparse.Namespace, env: LabEnv) -> Policy:
+def _policy(settings: RolloutSettings, env: LabEnv) -> Policy:
     """The policy to evaluate (``--policy``/``--model``, default ``runs/<env>/train``)."""
-    spec = getattr(args, "policy", None)
+    spec = settings.policy
     try:
         policy = resolve_policy(
             spec if spec is not None else default_out(env, "train"),
             env,
-            which=getattr(args, "model", "kept"),
+            which=settings.model,
         )
     except PolicyError as exc:
         hint = ""
@@ -209,40 +207,41 @@ class _Unusable(Exception):
     """What the user typed cannot run: one line, exit status 2, nothing left running."""
 
 
-def rollout_command(command: str, args: argparse.Namespace) -> int:
-    """``gymprecice evaluate`` / ``baseline`` / ``open-loop`` / ``feedback``."""
+def rollout_command(settings: RolloutSettings) -> int:
+    """``gymprecice evaluate`` / ``baseline`` / ``open-loop`` / ``feedback`` (the
+    settings' ``command``)."""
     try:
-        return _rollout_command(command, args)
+        return _rollout_command(settings.command, settings)
     except _Unusable as exc:
-        print(f"gymprecice {command}: {exc}", file=sys.stderr)
+        print(f"gymprecice {settings.command}: {exc}", file=sys.stderr)
         return 2
 
 
-def _rollout_command(command: str, args: argparse.Namespace) -> int:
+def _rollout_command(command: str, settings: RolloutSettings) -> int:
     try:
-        env_info = find_lab_env(args.env)
+        env_info = settings.lab_env
     except LabEnvError as exc:
         raise _Unusable(str(exc)) from None
-    out = (args.out or default_out(env_info, command)).resolve()
-    kwargs = build_env_kwargs(args, env_info, out)
+    out = settings.run_dir
+    kwargs = dict(settings.constructor_kwargs)  # added to below
     if command == "baseline":  # where the action cannot say "uncontrolled", a kwarg does
         kwargs = {**dict(env_info.baseline_kwargs), **kwargs}
-    baseline = _read_baseline(args.baseline) if getattr(args, "baseline", None) else None
-    video = _video(args, env_info, out)
+    baseline = _read_baseline(settings.baseline) if settings.baseline else None
+    video = _video(settings, env_info, out)
     if video is not None:
         kwargs["render_mode"] = "rgb_array"
-    policy = _policy(args, env_info) if command == "evaluate" else None
-    applied = _policy_kwargs(policy, env_info, args) if policy is not None else {}
+    policy = _policy(settings, env_info) if command == "evaluate" else None
+    applied = _policy_kwargs(policy, env_info, settings) if policy is not None else {}
     kwargs.update(applied)
     # what was typed is checked before the machine: a bad --law is the user's to fix anywhere
-    own_law = _own_law(args, env_info) if command == "feedback" else None
-    if not args.double:
-        status = require_solvers(env_info, command, verbose=args.require_solvers, kwargs=kwargs)
+    own_law = _own_law(settings, env_info) if command == "feedback" else None
+    if not settings.double:
+        status = require_solvers(env_info, command, verbose=settings.require_solvers, kwargs=kwargs)
         if status:
             return status
     # the robustness wrappers' noise is seeded by each episode's reset seed
     try:
-        robustness = wrap_spec(getattr(args, "wrap", []))
+        robustness = wrap_spec(list(settings.wrap))
     except WrapError as exc:
         raise _Unusable(str(exc)) from None
     # The policy acts in [-1, 1] (training rescales); the fixed controllers act in the
@@ -256,50 +255,51 @@ def _rollout_command(command: str, args: argparse.Namespace) -> int:
         robustness=robustness,
     )
     try:
-        episodes, starts = _episodes(command, args, env, env_info)
-        settings: dict[str, Any] = {
+        episodes, starts = _episodes(command, settings, env, env_info)
+        recorded: dict[str, Any] = {
             "robustness": robustness,
             "env_id": env_info.env_id,
             "env_kwargs": kwargs,
             "episodes": episodes,
             "held_out_starts": list(starts) if starts is not None else None,
-            "double": args.double,
+            "double": settings.double,
             "video": str(video) if video is not None else None,
         }
         controller, described = _controller(
-            command, args, env, env_info, (policy, applied) if policy else None, own_law
+            command, settings, env, env_info, (policy, applied) if policy else None, own_law
         )
-        settings.update(described)
+        recorded.update(described)
         case_dir = getattr(getattr(env.unwrapped, "config", None), "case_dir", None)
-        seeds = {"seed": args.seed, "episode_seeds": [args.seed + i for i in range(episodes)]}
-        write_manifest(out, command=command, case_dir=case_dir, seeds=seeds, settings=settings)
+        seed = settings.seed
+        seeds = {"seed": seed, "episode_seeds": [seed + i for i in range(episodes)]}
+        write_manifest(out, command=command, case_dir=case_dir, seeds=seeds, settings=recorded)
         summary = rollout(
             env,
             controller,
             out,
             episodes=episodes,
-            seed=args.seed,
+            seed=seed,
             every_start=starts is not None,
             reference=env_info.reference,
             video=video,
         )
         if baseline is not None:
-            summary["baseline"] = str(args.baseline.resolve())
+            summary["baseline"] = str(settings.baseline.resolve())
             summary["change_percent"] = change_against(summary, baseline)
             (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     finally:
         env.close()
-    manifest = {"case_dir": case_dir, "seeds": seeds, "settings": settings}
+    manifest = {"case_dir": case_dir, "seeds": seeds, "settings": recorded}
     solvers = read_manifest(out)["solvers"]  # as found before the rollout
     write_manifest(out, command=command, solvers=solvers, extra={"result": summary}, **manifest)
     print(_report(command, summary, out, env_info))
     return 0
 
 
-def _video(args: argparse.Namespace, env_info: LabEnv, out: Path) -> Path | None:
+def _video(settings: RolloutSettings, env_info: LabEnv, out: Path) -> Path | None:
     """``--video``'s file (None without it), refused before any solver starts: a format
     that cannot be written here, an env that cannot render."""
-    video = getattr(args, "video", None)
+    video = settings.video
     if video is None:
         return None
     try:
@@ -310,11 +310,11 @@ def _video(args: argparse.Namespace, env_info: LabEnv, out: Path) -> Path | None
     return path
 
 
-def _policy_kwargs(policy: Policy, env_info: LabEnv, args: argparse.Namespace) -> dict[str, Any]:
+def _policy_kwargs(policy: Policy, env_info: LabEnv, settings: RolloutSettings) -> dict[str, Any]:
     """The env keyword arguments the policy needs: it acts in [-1, 1], so the env must
     have the action bound it was trained with (each change said in one line)."""
     try:
-        applied, lines = policy_env_kwargs(policy, env_info, args.env_kwargs or {})
+        applied, lines = policy_env_kwargs(policy, env_info, settings.env_kwargs)
     except PolicyError as exc:
         raise _Unusable(str(exc)) from None
     for line in lines:
@@ -323,15 +323,15 @@ def _policy_kwargs(policy: Policy, env_info: LabEnv, args: argparse.Namespace) -
 
 
 def _own_law(
-    args: argparse.Namespace, env_info: LabEnv
+    settings: RolloutSettings, env_info: LabEnv
 ) -> tuple[FeedbackLaw, dict[str, float]] | None:
     """``feedback``'s law: the env's own at ``--law`` (:func:`law_point`), else None for a
     signal fed back, refused where the env names no signal and ``--signal`` none."""
     try:
-        own_law = law_point(env_info, getattr(args, "law", None))
+        own_law = law_point(env_info, settings.law)
     except ValueError as exc:
         raise _Unusable(str(exc)) from None
-    if own_law is None and not (args.signal or env_info.feedback_signal):
+    if own_law is None and not (settings.signal or env_info.feedback_signal):
         raise _Unusable(
             f"{env_info.name} has no default signal; pass --signal "
             "NAME (one of the metrics its steps report in info['metrics']), or declare the "
@@ -342,14 +342,14 @@ def _own_law(
 
 
 def _episodes(
-    command: str, args: argparse.Namespace, env: gym.Env, env_info: LabEnv
+    command: str, settings: RolloutSettings, env: gym.Env, env_info: LabEnv
 ) -> tuple[int, tuple[Any, ...] | None]:
     """How many episodes to run and, with ``--all-starts``, the starts they run from
     (None without it: each episode's start is drawn by its seed)."""
-    if not getattr(args, "all_starts", False):
-        return args.episodes, None
+    if not settings.all_starts:
+        return settings.episodes, None
     try:
-        starts = tuple(evaluation_starts(env, args.seed))
+        starts = tuple(evaluation_starts(env, settings.seed))
         held_out = held_out_starts(env)
     except StartsError as exc:
         raise _Unusable(str(exc)) from None
@@ -364,7 +364,7 @@ def _episodes(
 
 def _controller(
     command: str,
-    args: argparse.Namespace,
+    settings: RolloutSettings,
     env: gym.Env,
     env_info: LabEnv,
     policy: tuple[Policy, dict[str, Any]] | None,
@@ -374,7 +374,7 @@ def _controller(
     (``policy``: evaluate's, with the env keyword arguments applied for it)."""
     if command == "evaluate":
         assert policy is not None
-        return _policy_controller(*policy, args, env, env_info)
+        return _policy_controller(*policy, settings, env, env_info)
     if command == "baseline":
         return zero_controller(env.action_space), {}
     if command == "feedback" and own_law is not None:
@@ -384,23 +384,24 @@ def _controller(
         except ValueError as exc:
             raise _Unusable(str(exc)) from None
     if command == "feedback":
-        signal = str(args.signal or env_info.feedback_signal)
+        signal = str(settings.signal or env_info.feedback_signal)
         try:
             feedback = FeedbackController(
-                env.action_space, signal, args.gain, args.delay, args.centre
+                env.action_space, signal, settings.gain, settings.delay, settings.centre
             )
         except (TypeError, ValueError) as exc:
             raise _Unusable(str(exc)) from None
         return feedback, feedback.settings()
-    frequency = args.frequency or env_info.open_loop_frequency or default_frequency(env)
-    controller = sine_controller(env.action_space, args.amplitude, frequency, args.phase)
-    return controller, {"amplitude": args.amplitude, "frequency": frequency, "phase": args.phase}
+    amplitude, phase = settings.amplitude, settings.phase
+    frequency = settings.frequency or env_info.open_loop_frequency or default_frequency(env)
+    controller = sine_controller(env.action_space, amplitude, frequency, phase)
+    return controller, {"amplitude": amplitude, "frequency": frequency, "phase": phase}
 
 
 def _policy_controller(
     policy: Policy,
     applied: dict[str, Any],
-    args: argparse.Namespace,
+    settings: RolloutSettings,
     env: gym.Env,
     env_info: LabEnv,
 ) -> tuple[Controller, dict[str, Any]]:
@@ -413,7 +414,7 @@ def _policy_controller(
     except PolicyError as exc:
         raise _Unusable(str(exc)) from None
     normalizer = load_normalizer(model_path)
-    deterministic = not args.stochastic
+    deterministic = not settings.stochastic
 
     def controller(obs: Any, t: float) -> Any:
         if normalizer is not None:

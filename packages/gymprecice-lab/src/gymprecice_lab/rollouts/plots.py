@@ -17,7 +17,6 @@ machine and never open a window.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import sys
@@ -27,6 +26,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from gymprecice_lab.rollouts.command_settings import PlotSettings
 
 __all__ = [
     "load_coefficients",
@@ -425,16 +426,15 @@ def _save(fig: Any, plt: Any, path: Path) -> Path:
     return path
 
 
-def plot_command(args: argparse.Namespace) -> int:
+def plot_command(settings: PlotSettings) -> int:
     """``gymprecice plot RUN... [--baseline RUN] [--out DIR]``."""
-    runs: list[Path] = list(args.runs)
-    missing = [
-        str(r) for r in [*runs, *([args.baseline] if args.baseline else [])] if not r.is_dir()
-    ]
+    runs: list[Path] = list(settings.runs)
+    baseline = settings.baseline
+    missing = [str(r) for r in [*runs, *([baseline] if baseline else [])] if not r.is_dir()]
     if missing:
         print(f"gymprecice plot: no such run directory: {', '.join(missing)}", file=sys.stderr)
         return 1
-    labels = [s.strip() for s in (args.labels or "").split(",")] if args.labels else []
+    labels = [s.strip() for s in settings.labels.split(",")] if settings.labels else []
     if labels and len(labels) != len(runs):
         print(
             f"gymprecice plot: --labels has {len(labels)} names for {len(runs)} runs; "
@@ -442,14 +442,14 @@ def plot_command(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    STYLE.fmt, STYLE.dpi, STYLE.episode = args.format, args.dpi, args.episode
+    STYLE.fmt, STYLE.dpi, STYLE.episode = settings.format, settings.dpi, settings.episode
     STYLE.labels = {run.resolve(): label for run, label in zip(runs, labels)}
-    target = args.out or runs[0] / "plots"
+    target = settings.out or runs[0] / "plots"
     written = [
         plot_reward(runs, target),
-        plot_actions(runs, target, args.baseline),
-        plot_coefficients(runs, target, args.baseline),
-        plot_objective(runs, target, args.baseline),
+        plot_actions(runs, target, baseline),
+        plot_coefficients(runs, target, baseline),
+        plot_objective(runs, target, baseline),
     ]
     written_paths = [p for p in written if p is not None]
     if not written_paths:

@@ -37,7 +37,6 @@ rollouts (env, its settings, starts, seed) and runs only the others.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
@@ -53,9 +52,8 @@ import numpy as np
 
 from gymprecice.card import FeedbackLaw, load_object
 from gymprecice_lab.common.command_runs import die_with_parent
-from gymprecice_lab.common.constructor_kwargs import build_env_kwargs
 from gymprecice_lab.common.manifest import write_manifest
-from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, default_out, find_lab_env
+from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env
 from gymprecice_lab.common.requirements import require_solvers
 from gymprecice_lab.common.starts import (
     StartsError,
@@ -64,6 +62,7 @@ from gymprecice_lab.common.starts import (
     validation_starts,
 )
 from gymprecice_lab.common.wrapped_env import make_env_checked
+from gymprecice_lab.rollouts.command_settings import SweepSettings
 from gymprecice_lab.rollouts.controllers import sine_controller, zero_controller
 from gymprecice_lab.rollouts.feedback import FeedbackController, own_law_grid
 from gymprecice_lab.rollouts.records import episodes_by_start
@@ -319,26 +318,26 @@ class _Grid:
     law_points: list[dict[str, float]]
 
 
-def sweep_command(args: argparse.Namespace) -> int:
+def sweep_command(settings: SweepSettings) -> int:
     """``gymprecice sweep ENV``: uncontrolled, constants and sinusoids on the held-out starts."""
     try:
-        env_info = find_lab_env(args.env)
+        env_info = settings.lab_env
     except LabEnvError as exc:
         print(f"gymprecice sweep: {exc}", file=sys.stderr)
         return 2
-    grid = _grid(args, env_info)
-    starts = getattr(args, "starts", None) or "held-out"
-    out = (args.out or default_out(env_info, "sweep")).resolve()
-    kwargs = build_env_kwargs(args, env_info, out)
-    if not args.double:
-        status = require_solvers(env_info, "sweep", verbose=args.require_solvers, kwargs=kwargs)
+    grid = _grid(settings, env_info)
+    starts = settings.starts
+    out = settings.run_dir
+    kwargs = settings.constructor_kwargs
+    if not settings.double:
+        status = require_solvers(env_info, "sweep", verbose=settings.require_solvers, kwargs=kwargs)
         if status:
             return status
     box = _action_box(env_info, kwargs, starts)
     jobs = sweep_jobs(
         box,
-        args.constants,
-        args.centre,
+        settings.constants,
+        settings.centre,
         grid.amplitudes,
         grid.frequencies,
         grid.gains,
@@ -351,8 +350,8 @@ def sweep_command(args: argparse.Namespace) -> int:
     identity = {
         "env_id": env_info.env_id,
         "env_kwargs": kwargs,
-        "episodes": args.episodes,
-        "seed": args.seed,
+        "episodes": settings.episodes,
+        "seed": settings.seed,
         "feedback_signal": grid.signal if grid.gains else None,
         "feedback_law": env_info.feedback_law if grid.law_points else None,
         # None: the held-out starts (as sweeps recorded them before --starts existed)
@@ -363,11 +362,11 @@ def sweep_command(args: argparse.Namespace) -> int:
         out,
         command="sweep",
         case_dir=None,
-        seeds={"seed": args.seed},
+        seeds={"seed": settings.seed},
         settings={
             **identity,
-            "constants": args.constants,
-            "centre": args.centre,
+            "constants": settings.constants,
+            "centre": settings.centre,
             "amplitudes": grid.amplitudes,
             "frequencies": grid.frequencies,
             "feedback_gains": grid.gains,
@@ -375,36 +374,38 @@ def sweep_command(args: argparse.Namespace) -> int:
             "feedback_grid": [dict(p) for p in grid.law_points],
         },
     )
-    todo = [j for j in jobs if not (resumable and _finished(out, j, args.episodes))]
+    todo = [j for j in jobs if not (resumable and _finished(out, j, settings.episodes))]
     if len(todo) < len(jobs):
         print(
             f"gymprecice sweep: {len(jobs) - len(todo)} of {len(jobs)} controllers were "
             "finished by an earlier run of this sweep: kept",
             flush=True,
         )
-    if todo and not _run_unfinished(args, env_info, grid, kwargs, out, todo, starts):
+    if todo and not _run_unfinished(settings, env_info, grid, kwargs, out, todo, starts):
         return 1
-    _write(out, _results(out, jobs, env_info, args.episodes), env_info, starts)
+    _write(out, _results(out, jobs, env_info, settings.episodes), env_info, starts)
     return 0
 
 
-def _grid(args: argparse.Namespace, env_info: LabEnv) -> _Grid:
+def _grid(settings: SweepSettings, env_info: LabEnv) -> _Grid:
     """The options' grids, checked (a ``SystemExit`` naming the option otherwise)."""
-    if not 0.0 <= args.centre <= 1.0:
+    if not 0.0 <= settings.centre <= 1.0:
         raise SystemExit(
-            f"gymprecice sweep: --centre is a fraction of the action box, 0 to 1; got {args.centre}"
+            f"gymprecice sweep: --centre is a fraction of the action box, 0 to 1; got {settings.centre}"
         )
     # an empty --amplitudes: no sinusoids (a sweep of the feedback law alone)
-    amplitudes = parse_grid(args.amplitudes, "amplitudes") if args.amplitudes.strip() else []
-    frequencies = parse_grid(args.frequencies, "frequencies")
+    amplitudes = (
+        parse_grid(settings.amplitudes, "amplitudes") if settings.amplitudes.strip() else []
+    )
+    frequencies = parse_grid(settings.frequencies, "frequencies")
     if any(f <= 0 for f in frequencies):
         raise SystemExit("gymprecice sweep: --frequencies must be positive (Hz)")
-    gains = parse_grid(args.feedback_gains, "feedback-gains") if args.feedback_gains else []
-    delays = [int(d) for d in parse_grid(args.feedback_delays, "feedback-delays")]
+    gains = parse_grid(settings.feedback_gains, "feedback-gains") if settings.feedback_gains else []
+    delays = [int(d) for d in parse_grid(settings.feedback_delays, "feedback-delays")]
     if any(d < 0 for d in delays):
         raise SystemExit("gymprecice sweep: --feedback-delays are whole numbers of actions >= 0")
-    law, law_points = _law_points(args, env_info)
-    signal = args.feedback_signal or env_info.feedback_signal
+    law, law_points = _law_points(settings, env_info)
+    signal = settings.feedback_signal or env_info.feedback_signal
     if gains and signal is None:
         raise SystemExit(
             f"gymprecice sweep: {env_info.name} has no default feedback signal; pass "
@@ -438,7 +439,7 @@ def _action_box(
 
 
 def _run_unfinished(
-    args: argparse.Namespace,
+    settings: SweepSettings,
     env_info: LabEnv,
     grid: _Grid,
     kwargs: dict[str, Any],
@@ -450,11 +451,11 @@ def _run_unfinished(
     that did not are named on stderr)."""
     for job in todo:  # a half-written rollout must not pass for a finished one
         (out / job.label / "summary.json").unlink(missing_ok=True)
-    workers = min(max(1, int(getattr(args, "workers", 1) or 1)), len(todo))
+    workers = min(max(1, settings.workers), len(todo))
     where = (
-        f"{args.episodes} validation start(s)"
+        f"{settings.episodes} validation start(s)"
         if starts == "validation"
-        else describe_starts(args.episodes, env_info.held_out_starts)
+        else describe_starts(settings.episodes, env_info.held_out_starts)
     )
     print(
         f"gymprecice sweep: {len(todo)} controller(s) x {where} on {workers} worker(s)",
@@ -464,14 +465,14 @@ def _run_unfinished(
         "env": env_info.env_id,
         "kwargs": kwargs,
         "out": str(out),
-        "episodes": args.episodes,
-        "seed": args.seed,
+        "episodes": settings.episodes,
+        "seed": settings.seed,
         "signal": grid.signal,
         "law": env_info.feedback_law if grid.law_points else None,
         "starts": starts,
     }
     _run_workers(spec, todo, workers)
-    failed = [j.label for j in todo if not _finished(out, j, args.episodes)]
+    failed = [j.label for j in todo if not _finished(out, j, settings.episodes)]
     if failed:
         print(
             f"gymprecice sweep: {len(failed)} controller(s) did not finish "
@@ -498,15 +499,15 @@ def _results(out: Path, jobs: list[SweepJob], env_info: LabEnv, episodes: int) -
 
 
 def _law_points(
-    args: argparse.Namespace, env_info: LabEnv
+    settings: SweepSettings, env_info: LabEnv
 ) -> tuple[FeedbackLaw | None, list[dict[str, float]]]:
     """The env's own feedback law and the points of it to run (:func:`own_law_grid`)."""
     try:
         law, grid = own_law_grid(
             env_info.name,
             env_info.feedback_law,
-            args.feedback_gains,
-            getattr(args, "feedback_grid", None),
+            settings.feedback_gains,
+            settings.feedback_grid,
         )
     except ValueError as exc:
         raise SystemExit(f"gymprecice sweep: {exc}") from None

@@ -7,26 +7,26 @@ because SB3 keeps a saved model's values and would otherwise silently train with
 hyperparameters than the ones recorded.
 
 The command's side lives here too: :func:`hyperparameters` reads the file and the flags of
-its options, :func:`with_robustness` adds ``--wrap``, :func:`refuse_changed_resume` and
+its settings (:class:`~gymprecice_lab.training.command_settings.TrainSettings`), :func:`with_robustness` adds ``--wrap``, :func:`refuse_changed_resume` and
 :func:`keep_hyperparameters` hold a resume to the recorded set, and
 :func:`adjust_batch_size` clamps PPO's mini-batch to its rollout buffer.
 """
 
 from __future__ import annotations
 
-import argparse
 import inspect
 import json
 import math
 import shutil
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from gymprecice_lab.common.registered_env import LabEnv
 from gymprecice_lab.common.wrapping import wrap_spec
 from gymprecice_lab.model_based.settings import ENSEMBLE_KEY, EnsembleSettings
+from gymprecice_lab.training.command_settings import TrainSettings
 
 #: the key that overlaps SAC's and TD3's updates with the solvers (gymprecice_lab.training.overlap)
 OVERLAP_KEY = "overlap_updates"
@@ -295,25 +295,26 @@ def _show(value: Any) -> str:
 # -- the command's hyperparameters ---------------------------------------------------------
 
 
-def hyperparameters(args: argparse.Namespace, env: LabEnv, out: Path) -> dict[str, Any]:
-    """The run's resolved hyperparameters: the defaults, ``--hyperparams``, then the flags.
+def hyperparameters(settings: TrainSettings, env: LabEnv) -> dict[str, Any]:
+    """The run's resolved hyperparameters: the defaults, ``--hyperparams``, then the flags
+    (``env``: the one the file's sections are looked up by).
 
-    (:func:`keep_hyperparameters` copies ``--hyperparams`` into ``out``.)"""
+    (:func:`keep_hyperparameters` copies ``--hyperparams`` into the run.)"""
     from_file: dict[str, Any] = {}
-    if args.hyperparams is not None:
+    if settings.hyperparams is not None:
         keys = tuple(dict.fromkeys((env.env_id, env.name, env.env_id.split("/", 1)[-1])))
-        from_file = load_hyperparams_file(args.hyperparams, args.algo, keys)
+        from_file = load_hyperparams_file(settings.hyperparams, settings.algo, keys)
     flags = {
-        "n_steps": args.n_steps,
-        "batch_size": args.batch_size,
-        "n_epochs": args.n_epochs,
-        "learning_rate": args.learning_rate,
-        "gamma": args.gamma,
-        "net": _net(args.net) if args.net is not None else None,
-        "normalize": True if args.normalize else None,
-        SHARED_KEY: True if getattr(args, "shared_policy", False) else None,
+        "n_steps": settings.n_steps,
+        "batch_size": settings.batch_size,
+        "n_epochs": settings.n_epochs,
+        "learning_rate": settings.learning_rate,
+        "gamma": settings.gamma,
+        "net": _net(settings.net) if settings.net is not None else None,
+        "normalize": True if settings.normalize else None,
+        SHARED_KEY: True if settings.shared_policy else None,
     }
-    return resolve(args.algo, from_file, flags)
+    return resolve(settings.algo, from_file, flags)
 
 
 def _net(text: str) -> list[int]:
@@ -327,10 +328,10 @@ def _net(text: str) -> list[int]:
     return sizes
 
 
-def with_robustness(params: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
-    """``params`` with the robustness wrappers of the file and ``--wrap`` together (a
-    ``WrapError`` for a malformed one), none left where there are none."""
-    robustness = wrap_spec(params.get("robustness"), getattr(args, "wrap", []))
+def with_robustness(params: dict[str, Any], wrap: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """``params`` with the robustness wrappers of the file and ``--wrap`` (``wrap``)
+    together (a ``WrapError`` for a malformed one), none left where there are none."""
+    robustness = wrap_spec(params.get("robustness"), list(wrap))
     if robustness:
         params["robustness"] = robustness
     else:
@@ -353,15 +354,15 @@ def refuse_changed_resume(out: Path, params: Mapping[str, Any]) -> None:
 
 
 def keep_hyperparameters(
-    args: argparse.Namespace, out: Path, params: Mapping[str, Any], *, resumed: bool
+    hyperparams_file: Path | None, out: Path, params: Mapping[str, Any], *, resumed: bool
 ) -> None:
     """Write the run's hyperparameters (a resume keeps the first run's) and a copy of
-    ``--hyperparams`` into ``out``."""
+    ``--hyperparams`` (``hyperparams_file``) into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     if not resumed:
         (out / HYPERPARAMS_NAME).write_text(json.dumps(params, indent=2) + "\n")
-    if args.hyperparams is not None and args.hyperparams.resolve() != (out / "hyperparams.yaml"):
-        shutil.copyfile(args.hyperparams, out / "hyperparams.yaml")
+    if hyperparams_file is not None and hyperparams_file.resolve() != (out / "hyperparams.yaml"):
+        shutil.copyfile(hyperparams_file, out / "hyperparams.yaml")
 
 
 def adjust_batch_size(params: dict[str, Any], slots: int) -> list[str]:

@@ -9,7 +9,6 @@ starts when the user typed the command (:func:`command_started_at`).
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
@@ -18,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice_lab.common.manifest import read_manifest, write_manifest
-from gymprecice_lab.common.registered_env import LabEnv
+from gymprecice_lab.training.command_settings import TrainSettings
 
 __all__ = ["command_started_at", "previous_segments", "record_segment", "run_settings"]
 
@@ -36,30 +35,27 @@ def command_started_at() -> float:
 
 
 def run_settings(
-    args: argparse.Namespace,
-    env: LabEnv,
-    used: dict[str, Any],
-    adjusted: list[str],
-    kwargs: dict[str, Any],
+    settings: TrainSettings, used: dict[str, Any], adjusted: list[str]
 ) -> dict[str, Any]:
-    """What the manifest records of the run's settings."""
+    """What the manifest records of the run's settings (``used``: the hyperparameters
+    resolved, ``adjusted``: what was changed in them, and why)."""
     return {
-        "n_envs": args.n_envs,
-        "timesteps": args.timesteps,
-        "checkpoint_every": args.checkpoint_every,
-        "keep_checkpoints": args.keep_checkpoints,
-        "eval_freq": args.eval_freq,
-        "n_eval_episodes": args.n_eval_episodes,
-        "validation": not getattr(args, "no_validation", False),
-        "fresh": args.fresh,
-        "vec_env": args.vec_env,
-        "device": args.device,
-        "double": args.double,
-        "hyperparams_file": str(args.hyperparams) if args.hyperparams else None,
+        "n_envs": settings.n_envs,
+        "timesteps": settings.timesteps,
+        "checkpoint_every": settings.checkpoint_every,
+        "keep_checkpoints": settings.keep_checkpoints,
+        "eval_freq": settings.eval_freq,
+        "n_eval_episodes": settings.n_eval_episodes,
+        "validation": not settings.no_validation,
+        "fresh": settings.fresh,
+        "vec_env": settings.vec_env,
+        "device": settings.device,
+        "double": settings.double,
+        "hyperparams_file": str(settings.hyperparams) if settings.hyperparams else None,
         "hyperparams": used,
         "adjusted": adjusted,
-        "env_id": env.env_id,
-        "env_kwargs": kwargs,
+        "env_id": settings.lab_env.env_id,
+        "env_kwargs": settings.constructor_kwargs,
     }
 
 

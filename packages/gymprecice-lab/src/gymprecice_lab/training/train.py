@@ -27,15 +27,16 @@ Actions are rescaled to ``[-1, 1]`` for the policy (``RescaleAction``): a Gaussi
 starts with unit standard deviation, which against a ``±2.5e-4`` box would only ever
 produce the bounds. :func:`gymprecice_lab.common.wrapped_env.load_policy` rebuilds that env.
 
-This module is the command: it checks the options, the device and the solvers, resolves
-the hyperparameters (:mod:`gymprecice_lab.training.hyperparams`), finds the checkpoint to resume
-from, records each segment (:mod:`gymprecice_lab.training.segments`) and reports how the
+This module is the command: given its settings
+(:class:`~gymprecice_lab.training.command_settings.TrainSettings`: the env and its
+constructor arguments are derived there, once), it checks the device and the solvers,
+resolves the hyperparameters (:mod:`gymprecice_lab.training.hyperparams`), finds the
+checkpoint to resume from, records each segment (:mod:`gymprecice_lab.training.segments`) and reports how the
 run ended; the training itself is :func:`gymprecice_lab.training.loop.train`.
 """
 
 from __future__ import annotations
 
-import argparse
 import functools
 import shutil
 import sys
@@ -43,14 +44,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from gymprecice_lab.common.constructor_kwargs import build_env_kwargs
 from gymprecice_lab.common.kept_model import kept_summary
-from gymprecice_lab.common.registered_env import LabEnvError, default_out, find_lab_env
+from gymprecice_lab.common.registered_env import LabEnvError
 from gymprecice_lab.common.requirements import require_solvers
 from gymprecice_lab.common.wrapped_env import newest_checkpoint
 from gymprecice_lab.common.wrapping import WrapError
 from gymprecice_lab.model_based.settings import TRANSITIONS_FILE
 from gymprecice_lab.training import hyperparams as hp
+from gymprecice_lab.training.command_settings import TrainSettings
 from gymprecice_lab.training.loop import train
 from gymprecice_lab.training.segments import (
     command_started_at,
@@ -64,51 +65,53 @@ from gymprecice_lab.training.vector_env import probe_case
 __all__ = ["check_device", "train_command"]
 
 
-def train_command(args: argparse.Namespace) -> int:
+def train_command(settings: TrainSettings) -> int:
     """``gymprecice train``."""
     from gymprecice_lab.common.manifest import solver_versions
 
     started_at = command_started_at()
     try:
-        env = find_lab_env(args.env)
+        env = settings.lab_env
     except LabEnvError as exc:
         print(f"gymprecice train: {exc}", file=sys.stderr)
         return 2
-    out = (args.out or default_out(env, "train")).resolve()
-    kwargs = build_env_kwargs(args, env, out)  # usage errors first: they cost nothing to find
-    check_device(args.device)
+    out = settings.run_dir
+    kwargs = settings.constructor_kwargs  # usage errors first: they cost nothing to find
+    check_device(settings.device)
     solvers = solver_versions()
-    if not args.double:
+    if not settings.double:
         status = require_solvers(
             env,
             "train",
-            None if args.require_solvers else solvers,
-            verbose=args.require_solvers,
+            None if settings.require_solvers else solvers,
+            verbose=settings.require_solvers,
             kwargs=kwargs,
         )
         if status:
             return status
     try:
-        params = hp.with_robustness(hp.hyperparameters(args, env, out), args)
+        params = hp.with_robustness(hp.hyperparameters(settings, env), settings.wrap)
     except WrapError as exc:
         print(f"gymprecice train: {exc} (in --wrap or the hyperparameter file)", file=sys.stderr)
         return 2
-    resume = None if args.fresh else newest_checkpoint(out / "checkpoints")
+    resume = None if settings.fresh else newest_checkpoint(out / "checkpoints")
     if resume is not None:
         hp.refuse_changed_resume(out, params)
-    if args.fresh:
+    if settings.fresh:
         _start_fresh(out)
-    kwargs = build_env_kwargs(args, env, out)
     case_dir = probe_case(env, kwargs)
-    hp.keep_hyperparameters(args, out, params, resumed=resume is not None)
+    hp.keep_hyperparameters(settings.hyperparams, out, params, resumed=resume is not None)
     used = dict(params)
     agents = shared_agents(env, used)
-    slots = args.n_envs * max(1, len(agents))
-    settings = run_settings(args, env, used, hp.adjust_batch_size(used, slots), kwargs)
-    seeds = {"seed": args.seed, "env_seeds": [args.seed + i for i in range(args.n_envs)]}
+    slots = settings.n_envs * max(1, len(agents))
+    run = run_settings(settings, used, hp.adjust_batch_size(used, slots))
+    seeds = {
+        "seed": settings.seed,
+        "env_seeds": [settings.seed + i for i in range(settings.n_envs)],
+    }
     segments = previous_segments(out) if resume is not None else []
     record = functools.partial(
-        record_segment, out, settings, seeds, segments, case_dir, solvers, started_at
+        record_segment, out, run, seeds, segments, case_dir, solvers, started_at
     )
     record(None)
     result = train(
@@ -116,21 +119,21 @@ def train_command(args: argparse.Namespace) -> int:
         out,
         kwargs,
         used,
-        n_envs=args.n_envs,
-        timesteps=args.timesteps,
-        checkpoint_every=args.checkpoint_every,
-        keep_checkpoints=args.keep_checkpoints,
-        eval_freq=args.eval_freq,
-        n_eval_episodes=args.n_eval_episodes,
-        validate=not args.no_validation,
+        n_envs=settings.n_envs,
+        timesteps=settings.timesteps,
+        checkpoint_every=settings.checkpoint_every,
+        keep_checkpoints=settings.keep_checkpoints,
+        eval_freq=settings.eval_freq,
+        n_eval_episodes=settings.n_eval_episodes,
+        validate=not settings.no_validation,
         started_at=started_at,
         resume=resume[0] if resume else None,
-        vec_env=args.vec_env,
-        ray=getattr(args, "ray", None),
-        progress_bar=not args.no_progress_bar,
-        device=args.device,
-        seed=args.seed,
-        verbose=args.verbose,
+        vec_env=settings.vec_env,
+        ray=settings.ray,
+        progress_bar=not settings.no_progress_bar,
+        device=settings.device,
+        seed=settings.seed,
+        verbose=settings.verbose,
         segment=len(segments) + 1,
         agents=agents,
     )

@@ -25,7 +25,6 @@ What a long search on a shared machine or a cluster needs, and how it is met:
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import json
 import os
@@ -38,7 +37,8 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, default_out, find_lab_env
+from gymprecice_lab.common.registered_env import LabEnv, LabEnvError
+from gymprecice_lab.training.command_settings import TuneSettings
 from gymprecice_lab.training.tune_spaces import sample, space_names
 
 __all__ = ["TuneError", "objective", "open_study", "tune_command"]
@@ -161,7 +161,7 @@ def _alive(pid: Any, started: Any) -> bool:
 # -- one trial -------------------------------------------------------------------------------
 
 
-def objective(trial: Any, args: argparse.Namespace, env: LabEnv, out: Path) -> float:
+def objective(trial: Any, settings: TuneSettings, env: LabEnv, out: Path) -> float:
     """Train one trial's hyperparameters; its kept model's mean validation return."""
     import optuna
     import yaml
@@ -177,13 +177,14 @@ def objective(trial: Any, args: argparse.Namespace, env: LabEnv, out: Path) -> f
     original = storage.get_trial_system_attrs(trial_id).get("failed_trial", trial.number)
     run = out / "trials" / str(original)  # a retried trial resumes its first attempt's run
     run.mkdir(parents=True, exist_ok=True)
+    names = list(settings.params) if settings.params else None
     params = sample(
-        trial, args.algo, args.timesteps, args.n_envs, _fixed(args, env), args.params or None
+        trial, settings.algo, settings.timesteps, settings.n_envs, _fixed(settings, env), names
     )
     (run / "hyperparams.yml").write_text(yaml.safe_dump({env.env_id: params}, sort_keys=True))
     trial.set_user_attr("hyperparams", params)
     trial.set_user_attr("run", str(run))
-    argv = _train_argv(args, env, run)
+    argv = _train_argv(settings, env, run)
     status, reported, pruned = _watch(trial, argv, run)
     if pruned:
         raise optuna.TrialPruned(f"validation score lags at step {reported}")
@@ -203,16 +204,17 @@ def _own_start() -> Any:
     return process_starttime(os.getpid())
 
 
-def _fixed(args: argparse.Namespace, env: LabEnv) -> dict[str, Any]:
+def _fixed(settings: TuneSettings, env: LabEnv) -> dict[str, Any]:
     """``--hyperparams``: settings every trial keeps (the search does not vary them)."""
-    if args.hyperparams is None:
+    if settings.hyperparams is None:
         return {}
     from gymprecice_lab.training.hyperparams import load_hyperparams_file
 
-    return load_hyperparams_file(args.hyperparams, args.algo, (env.env_id, env.name))
+    return load_hyperparams_file(settings.hyperparams, settings.algo, (env.env_id, env.name))
 
 
-def _train_argv(args: argparse.Namespace, env: LabEnv, run: Path) -> list[str]:
+def _train_argv(settings: TuneSettings, env: LabEnv, run: Path) -> list[str]:
+    """A trial's ``gymprecice train`` command line, into ``run``."""
     argv = [
         sys.executable,
         "-m",
@@ -220,27 +222,27 @@ def _train_argv(args: argparse.Namespace, env: LabEnv, run: Path) -> list[str]:
         "train",
         env.env_id,
         "--algo",
-        args.algo,
+        settings.algo,
         "--hyperparams",
         str(run / "hyperparams.yml"),
         "--timesteps",
-        str(args.timesteps),
+        str(settings.timesteps),
         "--n-envs",
-        str(args.n_envs),
+        str(settings.n_envs),
         "--checkpoint-every",
-        str(args.validate_every),
+        str(settings.validate_every),
         "--seed",
-        str(args.seed),
+        str(settings.seed),
         "--no-progress-bar",
         "--out",
         str(run / "train"),
     ]
-    if args.double:
+    if settings.double:
         argv.append("--double")
-    if args.episode_time is not None:
-        argv += ["--episode-time", repr(args.episode_time)]
-    if args.env_kwargs:
-        argv += ["--env-kwargs", json.dumps(args.env_kwargs)]
+    if settings.episode_time is not None:
+        argv += ["--episode-time", repr(settings.episode_time)]
+    if settings.env_kwargs:
+        argv += ["--env-kwargs", json.dumps(settings.env_kwargs)]
     return argv
 
 
@@ -317,50 +319,51 @@ def _failure(run: Path, status: int) -> str:
 # -- the command -----------------------------------------------------------------------------
 
 
-def tune_command(args: argparse.Namespace) -> int:
+def tune_command(settings: TuneSettings) -> int:
     """``gymprecice tune ENV``."""
     try:
-        return _tune(args)
+        return _tune(settings)
     except (TuneError, LabEnvError) as exc:
         print(f"gymprecice tune: {exc}", file=sys.stderr)
         return 2
 
 
-def _tune(args: argparse.Namespace) -> int:
+def _tune(settings: TuneSettings) -> int:
     import optuna
 
-    env = find_lab_env(args.env)
-    if args.algo not in ("ppo", "sac", "td3"):
-        raise TuneError(f"--algo {args.algo}: choose ppo, sac or td3")
-    if args.params:
-        unknown = sorted(set(args.params) - set(space_names(args.algo)))
+    env = settings.lab_env
+    algo = settings.algo
+    if algo not in ("ppo", "sac", "td3"):
+        raise TuneError(f"--algo {algo}: choose ppo, sac or td3")
+    if settings.params:
+        unknown = sorted(set(settings.params) - set(space_names(algo)))
         if unknown:
             raise TuneError(
-                f"--params {','.join(unknown)}: {args.algo.upper()}'s search space has no "
-                f"such parameter; choose from {', '.join(space_names(args.algo))}"
+                f"--params {','.join(unknown)}: {algo.upper()}'s search space has no "
+                f"such parameter; choose from {', '.join(space_names(algo))}"
             )
-    if not args.double:
+    if not settings.double:
         from gymprecice_lab.common.requirements import require_solvers
 
         status = require_solvers(env, "tune", verbose=False)
         if status:
             return status
-    out = (args.out or default_out(env, "tune")).resolve()
-    storage = args.storage or f"sqlite:///{out / 'study.db'}"
-    name = args.study_name or f"{env.name}-{args.algo}"
-    settings = {
+    out = settings.run_dir
+    storage = settings.storage_url
+    name = settings.study
+    study_settings = {
         "env_id": env.env_id,
-        "algo": args.algo,
-        "timesteps": args.timesteps,
-        "n_envs": args.n_envs,
-        "double": bool(args.double),
+        "algo": algo,
+        "timesteps": settings.timesteps,
+        "n_envs": settings.n_envs,
+        "double": bool(settings.double),
     }
-    _fixed(args, env)  # a bad --hyperparams file is refused before anything is written
+    _fixed(settings, env)  # a bad --hyperparams file is refused before anything is written
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     try:
         study = open_study(
-            storage, name, settings, args.seed, int(os.environ.get(WORKER_VARIABLE, "0"))
+            storage, name, study_settings, settings.seed, int(os.environ.get(WORKER_VARIABLE, "0"))
         )
     except TuneError:
         if created:
@@ -371,24 +374,24 @@ def _tune(args: argparse.Namespace) -> int:
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     _retry_dead_trials(study)
     done = _counted(study)
-    todo = max(0, args.trials - done)
+    todo = max(0, settings.trials - done)
     if WORKER_VARIABLE in os.environ:  # an --n-jobs worker: its parent speaks and reports
         if todo:
-            _optimize(study, args, env, out, todo)
+            _optimize(study, settings, env, out, todo)
         return 0
     print(
-        f"gymprecice tune: {env.name}, {args.algo.upper()}, study {name!r} in {storage}: "
-        f"{done} trial(s) finished, {todo} to run ({args.n_jobs} at once), each "
-        f"{args.timesteps:,} steps on {args.n_envs} env(s) validated every "
-        f"{args.validate_every:,}; trials in {out / 'trials'}",
+        f"gymprecice tune: {env.name}, {algo.upper()}, study {name!r} in {storage}: "
+        f"{done} trial(s) finished, {todo} to run ({settings.n_jobs} at once), each "
+        f"{settings.timesteps:,} steps on {settings.n_envs} env(s) validated every "
+        f"{settings.validate_every:,}; trials in {out / 'trials'}",
         flush=True,
     )
     if todo:
-        if args.n_jobs > 1:
-            _optimize_in_workers(args, storage, name, todo)
+        if settings.n_jobs > 1:
+            _optimize_in_workers(settings, storage, name, todo)
         else:
-            _optimize(study, args, env, out, todo)
-    return _report(study, args, env, out, name)
+            _optimize(study, settings, env, out, todo)
+    return _report(study, settings, env, out, name)
 
 
 def _counted(study: Any) -> int:
@@ -398,30 +401,30 @@ def _counted(study: Any) -> int:
     return len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED)))
 
 
-def _optimize(study: Any, args: argparse.Namespace, env: LabEnv, out: Path, n: int) -> None:
+def _optimize(study: Any, settings: TuneSettings, env: LabEnv, out: Path, n: int) -> None:
     from optuna.trial import TrialState
 
     def stop_when_counted(study: Any, trial: Any) -> None:
-        if _counted(study) >= args.trials:
+        if _counted(study) >= settings.trials:
             study.stop()
 
     study.optimize(
-        lambda trial: objective(trial, args, env, out),
+        lambda trial: objective(trial, settings, env, out),
         n_trials=n + len(study.get_trials(deepcopy=False, states=(TrialState.WAITING,))),
         callbacks=[stop_when_counted],
         catch=(),
-        show_progress_bar=not args.no_progress_bar,
+        show_progress_bar=not settings.no_progress_bar,
         gc_after_trial=True,
     )
 
 
-def _optimize_in_workers(args: argparse.Namespace, storage: str, name: str, n: int) -> None:
+def _optimize_in_workers(settings: TuneSettings, storage: str, name: str, n: int) -> None:
     """``--n-jobs`` worker processes, each running trials of the one study (each the same
     command with ``--n-jobs 1`` and its share of the trials)."""
     argv = [a for a in sys.argv[1:]]
     workers = []
-    for k in range(args.n_jobs):
-        share = n // args.n_jobs + (1 if k < n % args.n_jobs else 0)
+    for k in range(settings.n_jobs):
+        share = n // settings.n_jobs + (1 if k < n % settings.n_jobs else 0)
         if not share:
             continue
         cmd = [
@@ -432,7 +435,7 @@ def _optimize_in_workers(args: argparse.Namespace, storage: str, name: str, n: i
             "--n-jobs",
             "1",
             "--trials",
-            str(args.trials),
+            str(settings.trials),
             "--storage",
             storage,
             "--study-name",
@@ -464,7 +467,7 @@ def _without(argv: list[str], flags: tuple[str, ...]) -> list[str]:
     return out
 
 
-def _report(study: Any, args: argparse.Namespace, env: LabEnv, out: Path, name: str) -> int:
+def _report(study: Any, settings: TuneSettings, env: LabEnv, out: Path, name: str) -> int:
     """Write the best hyperparameters and the figures; say the best trial."""
     import yaml
     from optuna.trial import TrialState
@@ -489,7 +492,7 @@ def _report(study: Any, args: argparse.Namespace, env: LabEnv, out: Path, name: 
     )
     summary = {
         "env_id": env.env_id,
-        "algo": args.algo,
+        "algo": settings.algo,
         "study": name,
         "best_trial": best.number,
         "best_value": best.value,
@@ -504,7 +507,7 @@ def _report(study: Any, args: argparse.Namespace, env: LabEnv, out: Path, name: 
     print(
         f"gymprecice tune: best trial {best.number}: mean validation return {best.value:.4g} "
         f"({len(complete)} finished, {len(pruned)} pruned, {len(failed)} of them failed); "
-        f"wrote {best_file} (`gymprecice train {env.name} --algo {args.algo} "
+        f"wrote {best_file} (`gymprecice train {env.name} --algo {settings.algo} "
         f"--hyperparams {best_file}`), tune.json{figures}"
     )
     return 0
