@@ -97,9 +97,9 @@ class MultiAgentAdapter(ParallelEnv):
     #: agent name -> the controller's write data it drives (``"Data-interface"`` keys or
     #: interface names); every write data belongs to exactly one agent
     agent_data: ClassVar[AgentData] = {}
-    #: reward of every live agent in the step in which a solver diverged (the
-    #: configuration's ``environment.divergence_penalty`` overrides it)
-    divergence_penalty: float = -10.0
+    #: reward of every live agent in the step in which a solver diverged, as the Adapter's
+    #: (the configuration's ``environment.divergence_penalty`` overrides it)
+    divergence_penalty: float = Adapter.divergence_penalty
 
     def __init__(
         self,

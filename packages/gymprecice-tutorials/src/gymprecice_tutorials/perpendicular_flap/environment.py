@@ -210,17 +210,16 @@ class PerpendicularFlapEnv(Adapter):
     def _get_action(self, action: Any, write_var_list: list) -> dict:
         centre = self.jet_centre(action)
         geometry = self.interface_geometry[self.INLET]
-        if self.setup != "jet":  # preCICE's tutorial: the same speed on every inlet face
+        if self.setup == "jet":
+            velocity_x = jet_profile(
+                geometry.coordinates[:, 1],
+                centre,
+                self.jet_height,
+                mean_velocity=2.0 / 3.0 * self.inlet_max_velocity,
+                areas=geometry.areas,
+            )
+        else:  # preCICE's tutorial: the action's speed on every inlet face
             velocity_x = np.full(len(geometry.coordinates), centre)
-            velocity = np.column_stack([velocity_x, np.zeros_like(velocity_x)])
-            return {ref: velocity for ref in write_var_list}
-        velocity_x = jet_profile(
-            geometry.coordinates[:, 1],
-            centre,
-            self.jet_height,
-            mean_velocity=2.0 / 3.0 * self.inlet_max_velocity,
-            areas=geometry.areas,
-        )
         velocity = np.column_stack([velocity_x, np.zeros_like(velocity_x)])
         return {ref: velocity for ref in write_var_list}
 

@@ -22,6 +22,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gymprecice_tutorials.perpendicular_flap.tip_figures import parabola_vertex
+
 __all__ = ["SOLID_AGREEMENT", "Swing", "swing_figures", "uncontrolled_swing"]
 
 
@@ -59,12 +61,9 @@ def _extrema(time: np.ndarray, values: np.ndarray) -> list[tuple[float, float, i
             sign = -1
         else:
             continue
-        curvature = left - 2.0 * mid + right
         step = 0.5 * (time[i + 1] - time[i - 1])
-        shift = 0.0 if curvature == 0 else 0.5 * (left - right) / curvature
-        found.append(
-            (time[i] + shift * step, mid - 0.25 * (left - right) * shift, sign),
-        )
+        shift, value = parabola_vertex(left, mid, right)
+        found.append((time[i] + shift * step, value, sign))
     return found
 
 

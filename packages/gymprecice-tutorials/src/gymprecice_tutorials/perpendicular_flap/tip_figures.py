@@ -24,7 +24,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["PUBLISHED", "TOLERANCE", "TipFigures", "published_series", "tip_figures"]
+__all__ = [
+    "PUBLISHED",
+    "TOLERANCE",
+    "TipFigures",
+    "parabola_vertex",
+    "published_series",
+    "tip_figures",
+]
 
 #: the grid a series is put on (s), and the half-width of an extremum's window (s)
 GRID = 0.01
@@ -72,6 +79,14 @@ def published_series() -> np.ndarray:
     return np.array([[float(v) for v in row.split(",")] for row in rows[1:]])
 
 
+def parabola_vertex(left: float, mid: float, right: float) -> tuple[float, float]:
+    """The vertex of the parabola through three equally spaced samples: its offset from
+    the middle one, in sample spacings, and its value. Places an extremum between rows."""
+    curvature = left - 2.0 * mid + right
+    shift = 0.0 if curvature == 0 else 0.5 * (left - right) / curvature
+    return shift, mid - 0.25 * (left - right) * shift
+
+
 def _extrema(time: np.ndarray, dx: np.ndarray) -> list[tuple[float, float, int]]:
     """``(time, value, +1 for a maximum / -1 for a minimum)`` of each extremum."""
     width = round(WINDOW / GRID)
@@ -90,10 +105,8 @@ def _extrema(time: np.ndarray, dx: np.ndarray) -> list[tuple[float, float, int]]
                 continue
             if i - lo == width and values[i] - values[lo:i].min() < PROMINENCE * swing:
                 continue
-            left, mid, right = dx[i - 1], dx[i], dx[i + 1]
-            curvature = left - 2.0 * mid + right
-            shift = 0.0 if curvature == 0 else 0.5 * (left - right) / curvature
-            found.append((time[i] + shift * GRID, mid - 0.25 * (left - right) * shift, sign))
+            shift, value = parabola_vertex(dx[i - 1], dx[i], dx[i + 1])
+            found.append((time[i] + shift * GRID, value, sign))
     return found
 
 

@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 
 from gymprecice_tutorials.perpendicular_flap.tip_figures import (
-    PUBLISHED,
     RELATIVE,
     TOLERANCE,
     TipFigures,
@@ -180,8 +179,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         reference_rows, source = published_series(), "preCICE's published figure"
     names = SMOKE_FIGURES if end < FULL_END else TipFigures._fields
     reference = tip_figures(*reference_rows[reference_rows[:, 0] <= end + 1e-9].T)
-    if args.reference is None and end == FULL_END:
-        reference = PUBLISHED
     solids = ("dealii", "fenics") if args.solid == "both" else (args.solid,)
     results, series, costs = {}, {}, {}
     for solid in solids:
