@@ -2,7 +2,7 @@
 # Set up a development environment on a fresh Debian machine: solvers, the real coupling
 # stack, and .venv.
 #
-#   bash scripts/setup.sh            # everything the tests and the main job need
+#   bash scripts/setup.sh            # everything the tests and `bash scripts/train.sh` need
 #   bash scripts/setup.sh base       # only 1 and 2 (enough for the lint and the fast tests)
 #   bash scripts/setup.sh stack      # only 3 and 4 (after `base`)
 #
