@@ -164,7 +164,7 @@ def test_hung_solver_is_killed_after_the_progress_timeout(
 
 
 def test_solver_exiting_at_start_fails_the_reset(make_case, base_config, tmp_path, monkeypatch):
-    monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "0")
+    monkeypatch.setenv("STUB_PRECICE_BLOCK_AT", "init")
     case = _case(
         make_case,
         base_config,
@@ -172,16 +172,11 @@ def test_solver_exiting_at_start_fails_the_reset(make_case, base_config, tmp_pat
         argv=["{python}", "-c", "import sys; sys.exit('no mesh found')"],
     )
     env = JetEnv(case, 0, run_root=tmp_path / "runs")
-    monkeypatch.setattr("gymprecice.coupling.CouplingSession.initialize", _blocking_initialize)
     with pytest.raises(SolverCrashedError, match="exited with status 1") as info:
         env.reset()
     assert "no mesh found" in info.value.log_tail
     env.close()
 
-
-def _blocking_initialize(self, request, timeout):
-    # initialize blocks in real preCICE until the partner connects; emulate that here
-    return self._state(self._request("advance", {"writes": [{}]}, timeout, checking_health=True))
 
 
 def test_wrong_action_shape_is_a_clear_error(make_case, base_config, tmp_path):

@@ -2,7 +2,8 @@
 
 It needs no partner: ``initialize`` and ``advance`` return at once (reading back the time
 as data), unless ``STUB_PRECICE_BLOCK_AT`` names a window at which ``advance`` blocks
-forever, like real preCICE does when its partner is gone. The faithful protocol double
+forever, like real preCICE does when its partner is gone, or is ``init``: then
+``initialize`` blocks, as real preCICE does until its partner connects. The faithful protocol double
 lives in :mod:`gymprecice.testing.fake_precice`; this stub isolates the Adapter's own logic.
 """
 
@@ -27,7 +28,9 @@ class Participant:
         self.windows = 0
         self.sizes = {}
         self.written = {}
-        self.block_at = int(os.environ.get("STUB_PRECICE_BLOCK_AT", "-1"))
+        block_at = os.environ.get("STUB_PRECICE_BLOCK_AT", "-1")
+        self.block_in_initialize = block_at == "init"
+        self.block_at = -1 if self.block_in_initialize else int(block_at)
         log = os.environ.get("STUB_PRECICE_LOG")
         self.log = open(log, "a") if log else None  # noqa: SIM115 - lives as long as the participant
 
@@ -47,7 +50,8 @@ class Participant:
             self.log.flush()
 
     def initialize(self):
-        pass
+        while self.block_in_initialize:
+            time.sleep(3600)
 
     def is_coupling_ongoing(self):
         return self.t < self.end - 1e-9
