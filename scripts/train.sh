@@ -5,7 +5,7 @@
 #   bash scripts/train.sh --ppo [extra options]                   # the same with PPO, 8,000 actions
 #   bash scripts/train.sh --paper [extra options]                 # the paper's full-fidelity run
 #   bash scripts/train.sh --flap [extra options]                  # the flap's FSI, ~1 h on 2 cores
-#   bash scripts/train.sh --plate [extra options]                 # the heated plate's CHT, ~1 h
+#   bash scripts/train.sh --plate [extra options]                 # the heated plate's CHT, 4,000 actions
 #
 # Default: JetCylinderFast-v0 (the jet cylinder's training case: coarse mesh, episodes from
 # a library of start snapshots, Rabault's reward and jet bound) with 2 s episodes, two
@@ -39,7 +39,9 @@
 #
 # --plate: HeatedPlateFast-v0, conjugate heat transfer (OpenFOAM fluid, laplacianFoam plate,
 # the controller): SAC drives the heater under the plate to hold the interface temperature
-# at a setpoint, 17,500 actions (875 episodes, about an hour), scripts/plate-sac.yml. Then:
+# at a setpoint, 4,000 actions (200 episodes), scripts/plate-sac-tuned.yml (the recipe
+# `gymprecice tune` found, docs/benchmark.md), keeping the model best on the validation
+# starts. Then:
 #
 #   .venv/bin/python -m gymprecice_tutorials.heated_plate.pid --sweep-on fast \
 #       --kp 2,3,4,6 --ki 25,50,75,100,150 --kd 0,1 --seeds 0,1,2 --constants 315 \
@@ -76,8 +78,8 @@ fi
 if [[ "${1:-}" == "--plate" ]]; then
     shift
     exec .venv/bin/gymprecice train heated-plate-fast --require-solvers --algo sac --normalize \
-        --hyperparams scripts/plate-sac.yml --timesteps 17500 --eval-freq 2000 \
-        --n-eval-episodes 3 "$@"
+        --hyperparams scripts/plate-sac-tuned.yml --timesteps 4000 --checkpoint-every 1000 \
+        --keep-checkpoints 10 "$@"
 fi
 previous=""
 for arg in "$@"; do  # an --out of the user's is where the scan looks too

@@ -136,7 +136,7 @@ def test_an_episode_reads_the_plate_writes_the_heater_and_steps_the_inflow(env) 
     obs, info = env.reset(seed=2, options={"split": "eval"})
     start = EVAL_STARTS[2]
     assert info["start"]["setpoint"] == start.setpoint and env.time == pytest.approx(0.2)
-    assert obs.shape == (4,) and env.observation_space.contains(obs)
+    assert obs.shape == (5,) and env.observation_space.contains(obs)  # with the integral
     assert obs[3] == pytest.approx(REFERENCE_INFLOW)
     velocities, times = [], []
     while True:
@@ -259,13 +259,14 @@ def test_a_laplacianfoam_plate_without_the_heater_patch_is_named(tmp_path: Path,
 def test_the_integral_observation_sums_the_episodes_error_and_starts_each_episode_at_zero(
     tmp_path: Path,
 ) -> None:
-    """``observation="integral"``: a fifth number, the error integrated over the episode's
-    actions (K s), zero at every reset, the first four unchanged. Cost: under 2 s."""
-    plain = HeatedPlateEnv(double=True, episode_time=0.5, settle_time=0.2, run_root=tmp_path / "a")
-    env = HeatedPlateEnv(
-        double=True, episode_time=0.5, settle_time=0.2, observation="integral",
-        run_root=tmp_path / "b",
+    """The default observation's fifth number, the error integrated over the episode's
+    actions (K s), is zero at every reset; ``observation="state"`` gives the first four,
+    unchanged. Cost: under 2 s."""
+    plain = HeatedPlateEnv(
+        double=True, episode_time=0.5, settle_time=0.2, observation="state",
+        run_root=tmp_path / "a",
     )  # fmt: skip
+    env = HeatedPlateEnv(double=True, episode_time=0.5, settle_time=0.2, run_root=tmp_path / "b")
     try:
         assert env.observation_space.shape == (5,) and plain.observation_space.shape == (4,)
         for _episode in range(2):

@@ -5,7 +5,8 @@
 another bound would act with other flow rates (JetCylinderFastEnv's jets are bounded by
 2.5e-5 m³/s, JetCylinderEnv's by 2.5e-4: ten times as strong). So ``policy.json`` keeps
 the keyword arguments that shape what the policy does (``env_kwargs``: the bound,
-``max_flow_rate`` or ``max_omega``, and ``jet_width`` when training set it) and
+``max_flow_rate`` or ``max_omega``, ``jet_width`` when training set it, and the
+``observation`` it was trained to see, when training chose one) and
 evaluation rebuilds any env with them, saying so in one line when the env is not the one
 the policy was trained on (a transfer). An env that does not take them, or whose
 observation does not have the policy's shape, is refused in one line. A training
@@ -30,6 +31,7 @@ __all__ = [
     "ACTUATOR_KWARGS",
     "BOUND_ATTRS",
     "MACHINE_KWARGS",
+    "OBSERVATION_KWARGS",
     "check_policy_env",
     "describe_env",
     "policy_env_kwargs",
@@ -39,6 +41,10 @@ __all__ = [
 BOUND_ATTRS = ("max_flow_rate", "max_omega")
 #: Keyword arguments that change the actuator, carried over when training set them.
 ACTUATOR_KWARGS = ("jet_width",)
+#: Keyword arguments that change what the policy sees, carried over when training set them:
+#: a plate policy trained with ``observation="integral"`` takes five numbers, not the
+#: default four, and must get them wherever it runs.
+OBSERVATION_KWARGS = ("observation",)
 #: Training keyword arguments that belong to the machine, not to the policy.
 MACHINE_KWARGS = ("run_root", "options", "case_dir")
 
@@ -68,7 +74,8 @@ def describe_env(env: LabEnv, kwargs: Mapping[str, Any]) -> dict[str, Any]:
             shaping: dict[str, Any] = {
                 k: float(getattr(inner, k)) for k in BOUND_ATTRS if hasattr(inner, k)
             }
-            shaping.update({k: kwargs[k] for k in ACTUATOR_KWARGS if k in kwargs})
+            carried = (*ACTUATOR_KWARGS, *OBSERVATION_KWARGS)
+            shaping.update({k: kwargs[k] for k in carried if k in kwargs})
             return {
                 "env": {"name": env.name, "id": env.env_id},
                 "env_kwargs": shaping,
@@ -103,7 +110,7 @@ def policy_env_kwargs(
     for key, value in shaping.items():
         if not _accepts(env, key):
             raise PolicyError(
-                f"{policy.label} acts through {key}={value!r} (trained on "
+                f"{policy.label} was trained with {key}={value!r} (on "
                 f"{policy.trained_on}); {env.name} has no {key}, it cannot run there"
             )
         if key in given and given[key] != value:
@@ -115,11 +122,15 @@ def policy_env_kwargs(
             applied[key] = value
     trained_on = policy.trained_on
     if trained_on and trained_on != env.name:
-        bound = ", ".join(f"{k}={v!r}" for k, v in applied.items()) or "its own bound"
+        acting = {k: v for k, v in applied.items() if k not in OBSERVATION_KWARGS}
+        seeing = {k: v for k, v in applied.items() if k in OBSERVATION_KWARGS}
         own = f" ({env.name}'s own: {env.action_bound:g})" if env.action_bound else ""
+        bound = ", ".join(f"{k}={v!r}" for k, v in acting.items())
+        parts = [f"{trained_on}'s action bound {bound}{own}"] if acting else []
+        parts += [f"{k}={v!r}" for k, v in seeing.items()]
         lines.append(
             f"transfer: {policy.label} was trained on {trained_on}; running it on "
-            f"{env.name} with {trained_on}'s action bound {bound}{own}"
+            f"{env.name} with {' and '.join(parts) or 'its own action bound'}"
         )
     return applied, lines
 
