@@ -5,7 +5,11 @@
 #   docs/assets/field-*.png          each tutorial's field snapshot (tutorial pages)
 #   docs/assets/sketch-*.png         each tutorial's case sketch (tutorial pages), drawn by
 #                                    `gymprecice sketch` from the case files (blockMesh)
-# Usage: bash scripts/make_docs_pictures.sh [wake|snapshots|sketches|all]   (default: all)
+#   docs/assets/anim-*.mp4           each environment's short animation (the gallery): one
+#                                    held-out start under its shipped policy (uncontrolled
+#                                    where it ships none), a frame per action
+# Usage: bash scripts/make_docs_pictures.sh [wake|snapshots|sketches|animations|all]
+# (default: all)
 # EPISODE_TIME (default 2) sets the wake video's simulated seconds; DOUBLE=1 makes the
 # snapshots on the test double instead, to try the script on a machine without solvers
 # (the pages say their pictures are the real solvers': do not publish those).
@@ -55,5 +59,24 @@ rotating-cylinder-fast rotating-cylinder
 perpendicular-flap-fast perpendicular-flap
 heated-plate-fast heated-plate
 two-flaps-fast two-flaps
+EOF
+fi
+
+if [[ $what == animations || $what == all ]]; then
+    # ENV NAME SECONDS COMMAND: the policy where one ships, from the first held-out start;
+    # SECONDS shortens the episode of an env that takes --episode-time ("-": its own)
+    while read -r env name seconds command; do
+        options=(--episodes 1)
+        [[ $command == evaluate ]] && options+=(--policy shipped)
+        [[ $seconds != - ]] && options+=(--episode-time "$seconds")
+        "$GP" "$command" "$env" "${options[@]}" --out "$work/anim-$name" \
+            --video "docs/assets/anim-$name.mp4"
+    done <<'EOF'
+quickstart quickstart 1 baseline
+jet-cylinder-fast jet-cylinder 2 evaluate
+rotating-cylinder-fast rotating-cylinder 2 evaluate
+perpendicular-flap-fast perpendicular-flap - evaluate
+heated-plate-fast heated-plate - evaluate
+two-flaps-fast two-flaps 3 evaluate
 EOF
 fi
