@@ -2,8 +2,8 @@
 
 Each tutorial environment the tutorials' plugin registers appears in exactly one of the
 page's ``env_table(...)`` calls, which write its facts from its registration when the site
-is built (scripts/docs_macros.py); each task has a picture that scripts/make_docs_pictures.sh
-makes and a link to its tutorial page; the page is in the site's navigation. The facts a
+is built (scripts/docs_macros.py); each task has an inline animation and a still that
+scripts/make_docs_pictures.sh makes, and a link to its tutorial page; the page is in the site's navigation. The facts a
 table shows are those of the registered env: its lab card and the spaces of an env made
 without starting a solver.
 """
@@ -63,7 +63,17 @@ def test_every_registered_environment_is_in_one_table() -> None:
 def test_each_task_has_its_picture_its_tutorial_and_its_cost(heading: str) -> None:
     section = _sections()[heading]
     script = (ROOT / "scripts" / "make_docs_pictures.sh").read_text()
-    pictures = re.findall(r"\]\((assets/[\w.-]+\.png)\)", section)
+    # an animation inline, a frame per action, that the script's table makes
+    videos = re.findall(
+        r'<video src="assets/anim-([\w-]+)\.mp4" poster="(assets/[\w.-]+\.png)"', section
+    )
+    assert len(videos) == 1, f"{heading}: no animation (or more than one)"
+    ((name, poster),) = videos
+    assert (ROOT / "docs" / "assets" / f"anim-{name}.mp4").is_file(), name
+    assert re.search(rf"^\S+ {name} \S+ (evaluate|baseline)$", script, re.M), (
+        f"anim-{name}.mp4: scripts/make_docs_pictures.sh does not make it"
+    )
+    pictures = [*re.findall(r"\]\((assets/[\w.-]+\.png)\)", section), poster]
     assert pictures, f"{heading}: no picture"
     for picture in pictures:
         assert (ROOT / "docs" / picture).is_file(), picture
