@@ -178,7 +178,6 @@ def test_solver_exiting_at_start_fails_the_reset(make_case, base_config, tmp_pat
     env.close()
 
 
-
 def test_wrong_action_shape_is_a_clear_error(make_case, base_config, tmp_path):
     case = _case(make_case, base_config, tmp_path)
 

@@ -107,7 +107,6 @@ def test_a_solver_abort_shows_its_error_line_not_only_the_backtrace(
     assert '"Fluidd" is not defined in the configuration.' in str(info.value)
 
 
-
 def test_a_crash_report_s_log_tail_has_no_colour_codes(tmp_path) -> None:
     """preCICE colours its log levels: a tail shown to a person must not carry the codes."""
     from gymprecice.errors import SolverCrashedError
