@@ -141,16 +141,22 @@ def score(
     ``0.0350 [0.0306, 0.0397]``; a percentage keeps its ``%``. ``interval=False`` gives
     the figure alone: ``88.9 %``."""
     metric, statistic, how = HEADLINES[env]
+    entry = _controller(env, controller, results)
+    stat = entry["metrics"][metric][statistic]
+    text = _write(stat["value"], how, units)
+    if entry["runs"] > 1 and interval:
+        low, high = _write(stat["low"], how, units), _write(stat["high"], how, units)
+        text += f" [{low}, {high}]"
+    return text
+
+
+def _controller(env: str, controller: str, results: Path) -> dict[str, Any]:
+    """A controller's entry in ``benchmark-{env}.json``: a baseline by its kind ("best
+    sinusoid") or its whole label ("best sinusoid: sine-...")."""
     data = _load(results / f"benchmark-{env}.json")
     for entry in data["controllers"]:
-        # a baseline by its kind ("best sinusoid") or its whole label ("best sinusoid: sine-...")
         if entry["label"] == controller or entry["label"].startswith(f"{controller}: "):
-            stat = entry["metrics"][metric][statistic]
-            text = _write(stat["value"], how, units)
-            if entry["runs"] > 1 and interval:
-                low, high = _write(stat["low"], how, units), _write(stat["high"], how, units)
-                text += f" [{low}, {high}]"
-            return text
+            return entry
     labels = [entry["label"] for entry in data["controllers"]]
     raise KeyError(f"docs/results/benchmark-{env}.json has no controller {controller!r}: {labels}")
 
@@ -161,14 +167,9 @@ def below(env: str, controller: str, other: str, results: Path = RESULTS) -> str
     "PPO", "best sinusoid")`` is ``18 %``. A figure a page would otherwise compute and type
     by hand."""
     metric, statistic, _ = HEADLINES[env]
-    data = _load(results / f"benchmark-{env}.json")
 
     def value(label: str) -> float:
-        for entry in data["controllers"]:
-            if entry["label"] == label or entry["label"].startswith(f"{label}: "):
-                return float(entry["metrics"][metric][statistic]["value"])
-        labels = [entry["label"] for entry in data["controllers"]]
-        raise KeyError(f"docs/results/benchmark-{env}.json has no controller {label!r}: {labels}")
+        return float(_controller(env, label, results)["metrics"][metric][statistic]["value"])
 
     return f"{100.0 * (1.0 - value(controller) / value(other)):.0f} %"
 
