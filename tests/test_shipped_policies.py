@@ -335,10 +335,10 @@ def test_evaluate_by_name_and_as_shipped_acts_like_the_training_run(tiny):
 
 
 def test_a_policy_trained_to_see_more_ships_what_it_sees(tmp_path: Path):
-    """A plate policy trained with ``observation="integral"`` takes five numbers, not the
-    default four: it ships that keyword and runs by name without being told it again."""
+    """A plate policy trained with ``observation="state"`` takes four numbers, not the
+    default five: it ships that keyword and runs by name without being told it again."""
     policies = tmp_path / "policies"
-    kwargs = json.dumps({"observation": "integral"})
+    kwargs = json.dumps({"observation": "state"})
     train = ["heated-plate-fast", "--double", "--env-kwargs", kwargs, "--net", "8,8"]
     ppo = ["--n-steps", "8", "--batch-size", "8", "--n-epochs", "1", "--timesteps", "8"]
     quick = ["--no-validation", "--no-progress-bar"]
@@ -346,8 +346,8 @@ def test_a_policy_trained_to_see_more_ships_what_it_sees(tmp_path: Path):
     ship = ["train", "--model", "final", "--name", "sees-more"]
     _ok(_cli(tmp_path, "ship-policy", *ship, policies=policies))
     meta = read_metadata(policies / "sees-more")
-    assert meta["env_kwargs"]["observation"] == "integral"
-    assert meta["observation_shape"] == [5]
+    assert meta["env_kwargs"]["observation"] == "state"
+    assert meta["observation_shape"] == [4]
     common = ["heated-plate-fast", "--double", "--episodes", "1"]
     _ok(
         _cli(
@@ -355,7 +355,7 @@ def test_a_policy_trained_to_see_more_ships_what_it_sees(tmp_path: Path):
         )
     )
     settings = json.loads((tmp_path / "ev" / "manifest.json").read_text())["settings"]
-    assert settings["env_kwargs"]["observation"] == "integral"
+    assert settings["env_kwargs"]["observation"] == "state"
 
 
 def test_transfer_to_another_env_keeps_the_training_bound(tiny, tmp_path):
