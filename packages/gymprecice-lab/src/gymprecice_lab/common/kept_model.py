@@ -51,8 +51,9 @@ def kept_summary(record: Mapping[str, Any]) -> str:
     clock = "" if seconds is None else f", {clock_text(float(seconds))} after the command was typed"
     starts = record.get("starts") or []
     on = f"{len(starts)} validation start(s)" if starts else "validation"
+    score = str(record.get("score") or "mean validation return").replace("validation ", "")
     return (
-        f"best on {on} (mean return {float(record['mean_return']):.4g}) at step "
+        f"best on {on} ({score} {float(record['mean_return']):.4g}) at step "
         f"{int(record['timesteps']):,}{clock}"
     )
 

@@ -20,12 +20,15 @@ import os
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
 
 from gymprecice_lab.common.registered_env import find_lab_env
+
+if TYPE_CHECKING:
+    from gymprecice.card import Reference
 
 __all__ = [
     "ACTION_RMS",
@@ -133,6 +136,7 @@ def make_env(
     robustness: Mapping[str, Any] | None = None,
     held_out: bool = False,
     validation: tuple[int, int] | None = None,
+    score: Reference | None = None,
 ) -> gym.Env:
     """One environment as training and evaluation see it (module level: picklable).
 
@@ -145,7 +149,9 @@ def make_env(
     env's held-out starts in turn (:class:`gymprecice_lab.common.starts.HeldOutStarts`);
     ``validation=(part, parts)`` its share of the validation starts
     (:class:`gymprecice_lab.common.starts.ValidationStarts`: the envs that choose the model a
-    training run keeps).
+    training run keeps); ``score`` makes each episode's return the fraction of that
+    reference's floor it reaches once settled
+    (:class:`gymprecice_lab.training.validation_score.SettledFloorScore`).
     """
     import gymprecice  # noqa: F401  (registers the gymprecice/... ids in this process)
 
@@ -158,6 +164,10 @@ def make_env(
         from gymprecice_lab.common.starts import ValidationStarts
 
         env = ValidationStarts(env, *validation)
+    if score is not None:  # inside the Monitor, whose returns SB3's evaluation reads
+        from gymprecice_lab.training.validation_score import SettledFloorScore
+
+        env = SettledFloorScore(env, score)
     keywords = episode_keywords(env_id)
     env = EpisodeMetrics(env, keywords[:-1])
     space = env.action_space

@@ -5,7 +5,9 @@ the trial is an ordinary ``gymprecice train`` run (its own process, its own dire
 ``<out>/trials/<n>``), whose validations (:mod:`gymprecice_lab.training.validation`) are
 reported to Optuna as they are written, so that the median pruner stops a trial whose
 validation score lags the others' at the same step. A trial's score is its kept model's:
-the best mean validation return. Held-out starts are never read.
+its best validation score (the mean validation return, or the settled fraction of the
+floor for an env with a physical reference, :mod:`.validation_score`). Held-out starts
+are never read.
 
 What a long search on a shared machine or a cluster needs, and how it is met:
 
@@ -158,11 +160,16 @@ def _alive(pid: Any, started: Any) -> bool:
         return False
 
 
+def _score(trial: Any) -> str:
+    """What a finished trial's value is (its kept model's record says)."""
+    return str(trial.user_attrs.get("score") or "mean validation return")
+
+
 # -- one trial -------------------------------------------------------------------------------
 
 
 def objective(trial: Any, settings: TuneSettings, env: LabEnv, out: Path) -> float:
-    """Train one trial's hyperparameters; its kept model's mean validation return."""
+    """Train one trial's hyperparameters; its kept model's validation score."""
     import optuna
     import yaml
 
@@ -195,6 +202,7 @@ def objective(trial: Any, settings: TuneSettings, env: LabEnv, out: Path) -> flo
         print(f"gymprecice tune: trial {trial.number} pruned: {reason}", file=sys.stderr)
         raise optuna.TrialPruned(reason)
     trial.set_user_attr("kept_step", kept["timesteps"])
+    trial.set_user_attr("score", kept.get("score", "mean validation return"))
     return float(kept["mean_return"])
 
 
@@ -487,7 +495,7 @@ def _report(study: Any, settings: TuneSettings, env: LabEnv, out: Path, name: st
     best_file = out / "best_hyperparams.yml"
     best_file.write_text(
         f"# gymprecice tune {env.name}: study {name!r}, trial {best.number} of "
-        f"{len(complete) + len(pruned)}, mean validation return {best.value:.6g}\n"
+        f"{len(complete) + len(pruned)}, {_score(best)} {best.value:.6g}\n"
         + yaml.safe_dump({env.env_id: params}, sort_keys=True)
     )
     summary = {
@@ -505,7 +513,7 @@ def _report(study: Any, settings: TuneSettings, env: LabEnv, out: Path, name: st
     (out / "tune.json").write_text(json.dumps(summary, indent=2) + "\n")
     figures = _figures(study, out)
     print(
-        f"gymprecice tune: best trial {best.number}: mean validation return {best.value:.4g} "
+        f"gymprecice tune: best trial {best.number}: {_score(best)} {best.value:.4g} "
         f"({len(complete)} finished, {len(pruned)} pruned, {len(failed)} of them failed); "
         f"wrote {best_file} (`gymprecice train {env.name} --algo {settings.algo} "
         f"--hyperparams {best_file}`), tune.json{figures}"

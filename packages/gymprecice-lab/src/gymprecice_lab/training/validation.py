@@ -6,9 +6,11 @@ its final model. So every ``--eval-freq`` env steps (default: at every checkpoin
 policy is run deterministically from the env's *validation starts*
 (:func:`~gymprecice_lab.common.starts.validation_starts`: disjoint from the held-out starts that
 judge a controller, and from what training draws), once from each, and the best so far is
-kept as ``best_model.zip`` with ``eval/best.json``: its step, its score (the mean
-validation return), its wall-clock from the typed command, and the starts it was scored
-on. The held-out starts never choose: judging a model on the starts that chose it would
+kept as ``best_model.zip`` with ``eval/best.json``: its step, its score, its wall-clock
+from the typed command, and the starts it was scored on. The score is the mean
+validation return, or, for an env whose card declares a physical reference (a drag
+floor), the fraction of the floor it reaches once settled, over longer episodes
+(:mod:`gymprecice_lab.training.validation_score`): what the benchmark judges. The held-out starts never choose: judging a model on the starts that chose it would
 flatter it.
 
 SB3's ``EvalCallback`` does the running, on an env of its own (index ``n_envs``, its own
@@ -38,6 +40,11 @@ from gymprecice_lab.common.kept_model import KEPT_RECORD
 from gymprecice_lab.common.registered_env import LabEnv
 from gymprecice_lab.common.wrapped_env import make_env, vecnormalize_path
 from gymprecice_lab.training.callbacks import save_checkpoint
+from gymprecice_lab.training.validation_score import (
+    score_name,
+    settled_reference,
+    validation_episode_time,
+)
 
 __all__ = ["EVAL_SEED_OFFSET", "eval_callback", "side_by_side", "validate_final"]
 
@@ -54,13 +61,21 @@ class _SaveBest(BaseCallback):
     """Called by ``EvalCallback`` on a new best: save it with its statistics, record it."""
 
     def __init__(
-        self, out: Path, normalize: bool, labels: tuple[str, ...], started_at: float | None
+        self,
+        out: Path,
+        normalize: bool,
+        labels: tuple[str, ...],
+        started_at: float | None,
+        score: str,
+        episode_time: float | None,
     ) -> None:
         super().__init__()
         self.out = out
         self.normalize = normalize
         self.labels = labels
         self.started_at = started_at
+        self.score = score
+        self.episode_time = episode_time
 
     def _on_step(self) -> bool:
         parent = self.parent
@@ -70,8 +85,9 @@ class _SaveBest(BaseCallback):
         record = {
             "mean_return": float(parent.best_mean_reward),
             "timesteps": self.num_timesteps,
-            "score": "mean validation return",
+            "score": self.score,
             "starts": list(self.labels),
+            "episode_time": self.episode_time,
             "returns": returns,
             "saved_at": round(now, 3),
             "seconds_from_command": (
@@ -125,8 +141,18 @@ def eval_callback(
     probe = make_env(env.env_id, n_envs, dict(env_kwargs), rescale=False)
     try:
         labels = validation_starts(probe)
+        episode_time = env_kwargs.get(
+            "episode_time", getattr(probe.unwrapped, "episode_time", None)
+        )
     finally:
         probe.close()
+    reference = settled_reference(env.card)
+    if reference is not None and reference.settle_time > 0:
+        if episode_time is None:  # the card says it takes one, but the env does not tell
+            reference = None
+        else:
+            episode_time = validation_episode_time(reference, float(episode_time))
+            env_kwargs = {**env_kwargs, "episode_time": episode_time}
     parts = side_by_side(len(labels), n_envs)
     fns = [
         functools.partial(
@@ -136,6 +162,7 @@ def eval_callback(
             dict(env_kwargs),
             monitor_file=str(out / "eval" / (f"env_{part}" if parts > 1 else "env")),
             validation=(part, parts),
+            score=reference,
         )
         for part in range(parts)
     ]
@@ -162,7 +189,14 @@ def eval_callback(
         )
     callback = EvalCallback(
         eval_env,
-        callback_on_new_best=_SaveBest(out, normalize, labels, started_at),
+        callback_on_new_best=_SaveBest(
+            out,
+            normalize,
+            labels,
+            started_at,
+            score_name(reference),
+            float(episode_time) if episode_time is not None else None,
+        ),
         n_eval_episodes=n_eval_episodes * max(1, len(agents)),
         eval_freq=max(1, eval_freq // slots),
         log_path=str(out / "eval"),
