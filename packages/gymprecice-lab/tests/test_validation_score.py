@@ -85,8 +85,7 @@ def test_the_jet_keeps_the_model_best_on_settled_drag_over_longer_episodes(tmp_p
     from gymprecice_tutorials.environments import fast_cylinder_floor
 
     (tmp_path / "sac.yml").write_text(
-        "gymprecice/JetCylinderFast-v0:\n  learning_starts: 4\n  batch_size: 8\n"
-        "  net: [16, 16]\n"
+        "gymprecice/JetCylinderFast-v0:\n  learning_starts: 4\n  batch_size: 8\n  net: [16, 16]\n"
     )
     status = main(
         [
