@@ -535,3 +535,66 @@ def test_import_gymprecice_registers_nothing_twice() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PluginWarning)
         assert registration.register_environments() == []
+
+
+FIRST_IMPORT_CHECK = """
+import json, warnings
+warnings.simplefilter("error")  # a plugin registered without its hooks would warn nothing
+import {plugin}  # the plugin module first: it imports gymprecice at its top
+from gymprecice.plugins import get_plugin_manager, solver_kinds
+kinds = solver_kinds()
+import gymnasium
+env = gymnasium.make("{env_id}")
+print(json.dumps({{"kinds": sorted(kinds), "obs": env.reset(seed=0)[0].tolist()}}))
+"""
+
+
+def test_a_plugin_module_imported_before_gymprecice_keeps_its_hooks(distribution) -> None:
+    """A plugin module that imports gymprecice at its top, imported first, is half imported
+    while gymprecice loads the plugins: it is registered once its import has finished,
+    with every hook and its environments, at the next use of the plugin manager (pluggy
+    would otherwise have registered it without hooks, for good)."""
+    plugin = _unique("early_plugin")
+    env_id = f"early/Early{uuid.uuid4().hex[:6]}-v0"
+    root = distribution(
+        "early-dist",
+        {"early": plugin},
+        {
+            plugin: f"""
+            import gymnasium, numpy as np
+            from gymprecice.plugin.hookspecs import hookimpl
+
+            class Env(gymnasium.Env):
+                observation_space = gymnasium.spaces.Box(-1.0, 1.0, (1,), np.float32)
+                action_space = gymnasium.spaces.Discrete(2)
+
+                def reset(self, *, seed=None, options=None):
+                    super().reset(seed=seed)
+                    return np.full(1, 0.25, np.float32), {{}}
+
+                def step(self, action):
+                    return np.zeros(1, np.float32), 0.0, True, False, {{}}
+
+            @hookimpl
+            def gymprecice_solver_kinds():
+                return {{"early-kind": "a kind from a plugin imported first"}}
+
+            @hookimpl
+            def gymprecice_register_environments(register):
+                register("{env_id}", entry_point="{plugin}:Env")
+            """
+        },
+    )
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), *sys.path]))
+    env.pop(DISABLE_ENV_VAR, None)
+    proc = subprocess.run(
+        [sys.executable, "-c", FIRST_IMPORT_CHECK.format(plugin=plugin, env_id=env_id)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert "early-kind" in result["kinds"]
+    assert result["obs"] == [0.25]

@@ -164,3 +164,38 @@ def test_workers_and_resumed_searches_do_not_propose_the_same_first_trials(tmp_p
     again.mkdir()
     url = f"sqlite:///{again / 'study.db'}"
     assert first_proposal(0) == proposals[0]  # the same command on a new study: reproducible
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_with_ray_the_workers_run_trials_of_one_study_on_the_cluster(ray_cluster, tmp_path):
+    """``--ray ADDRESS --n-jobs 2``: each worker is a Ray task on a worker node (the head
+    has no CPU), its trials train there, the study holds both, and the report is written
+    here from the study."""
+    import optuna
+
+    (tmp_path / "fixed.yml").write_text(FIXED)
+    run = _cli(tmp_path, *COMMON, "--trials", "2", "--n-jobs", "2", "--ray", ray_cluster.address)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert f"(2 at once on the Ray cluster at {ray_cluster.address})" in run.stdout
+    assert run.stdout.count("exit status 0") == 2
+    study = optuna.load_study(
+        study_name="quickstart-sac", storage=f"sqlite:///{tmp_path / 'tune' / 'study.db'}"
+    )
+    trials = study.get_trials(deepcopy=False)
+    assert [t.state.name for t in trials] == ["COMPLETE", "COMPLETE"]
+    workers = {node.node_id for node in ray_cluster.worker_nodes}
+    assert {t.user_attrs["ray_node"] for t in trials} <= workers
+    summary = json.loads((tmp_path / "tune" / "tune.json").read_text())
+    assert summary["trials"]["complete"] == 2
+    assert (tmp_path / "tune" / "best_hyperparams.yml").is_file()
+
+
+def test_with_ray_a_cluster_that_does_not_answer_is_refused_and_leaves_nothing(tmp_path):
+    pytest.importorskip("ray", reason="tune --ray needs gymprecice-core[ray]")
+    (tmp_path / "fixed.yml").write_text(FIXED)
+    run = _cli(tmp_path, *COMMON, "--n-jobs", "2", "--ray", "127.0.0.1:1")
+    assert run.returncode == 2
+    assert run.stderr.startswith("gymprecice tune: --ray 127.0.0.1:1: no Ray cluster answers")
+    assert len(run.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "tune").exists()

@@ -7,9 +7,11 @@ from ``gymprecice-lab`` (the ``train`` extra), which reads the cards registered 
 
 Nothing here imports ``gymprecice`` when the module is imported, and the table is built
 inside the hook: whichever module a program imports first (this one, the table, an env
-class or ``gymprecice``), the hook runs once ``gymprecice`` registers its plugins and finds
-everything it needs whole. (Importing ``gymprecice.hookspecs`` here would register the
-plugins while this module is half imported, its hook not yet defined.)
+class or ``gymprecice``), the hook runs when ``gymprecice`` registers its plugins and finds
+everything it needs whole, so ``gymnasium.make`` knows the tutorials' ids right after.
+(Importing ``gymprecice.plugin.hookspecs`` here would work too, but were this module the
+first import, gymprecice would meet it half imported and register it only at the next
+use of its plugin manager: :mod:`gymprecice.plugin.manager`.)
 """
 
 from __future__ import annotations

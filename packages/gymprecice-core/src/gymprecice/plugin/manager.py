@@ -23,6 +23,14 @@ A plugin that fails to import or to register does not take gymprecice down with 
 is reported with a :class:`PluginWarning` naming the plugin and its distribution, and
 listed by :func:`plugin_failures` (``gymprecice plugins`` and ``gymprecice doctor`` show
 it).
+
+A plugin module may import ``gymprecice`` at its top, as any module does. When such a
+module is the first thing a program imports, it is still half imported while
+``gymprecice`` loads the plugins: its hooks are not defined yet, and pluggy would register
+it without them. So a plugin module met half imported is *deferred*: it is registered,
+and its environments with it (:mod:`gymprecice.plugin.registration`), at the next
+:func:`get_plugin_manager` call once its import has finished, which every use of a hook
+makes.
 """
 
 from __future__ import annotations
@@ -144,6 +152,8 @@ class GymPrecicePluginManager(pluggy.PluginManager):
         self.distributions: dict[str, importlib.metadata.Distribution] = {}
         #: plugins that could not be loaded or registered
         self.failures: list[PluginFailure] = []
+        #: plugin modules met half imported, waiting for their import to finish
+        self.deferred: list[tuple[importlib.metadata.EntryPoint, Any, Any]] = []
         self.loaded = False
 
     # -- loading -------------------------------------------------------------------------
@@ -200,6 +210,23 @@ class GymPrecicePluginManager(pluggy.PluginManager):
         except Exception as exc:
             self._fail(ep.name, dist, f"cannot import {ep.value!r}: {type(exc).__name__}: {exc}")
             return False
+        if _half_imported(plugin):
+            # this very import is under way further up the stack: its hooks come later
+            self.deferred.append((ep, dist, plugin))
+            return False
+        return self._register_loaded(ep, dist, plugin)
+
+    def register_deferred(self) -> list[str]:
+        """Register the deferred plugins whose import has finished; their names."""
+        ready = [item for item in self.deferred if not _half_imported(item[2])]
+        if not ready:
+            return []
+        self.deferred = [item for item in self.deferred if _half_imported(item[2])]
+        return [ep.name for ep, dist, plugin in ready if self._register_loaded(ep, dist, plugin)]
+
+    def _register_loaded(
+        self, ep: importlib.metadata.EntryPoint, dist: importlib.metadata.Distribution, plugin: Any
+    ) -> bool:
         if self.is_registered(plugin):
             # Declared under two names (or by two distributions): register it once only,
             # or every hook of it would answer twice.
@@ -301,15 +328,26 @@ _manager: GymPrecicePluginManager | None = None
 _loading: GymPrecicePluginManager | None = None
 
 
+def _half_imported(plugin: Any) -> bool:
+    """Whether ``plugin`` is a module whose import is still running (importlib marks its
+    spec ``_initializing`` until the module's code has run to the end)."""
+    spec = getattr(plugin, "__spec__", None)
+    return bool(getattr(spec, "_initializing", False))
+
+
 def get_plugin_manager() -> GymPrecicePluginManager:
     """Return the process-wide plugin manager, loading the plugins on the first call.
 
     Thread-safe and idempotent. A plugin module that itself calls this function while it
-    is being imported gets the manager being filled (instead of a recursive load).
+    is being imported gets the manager being filled (instead of a recursive load). Plugin
+    modules deferred because they were half imported are registered here, with their
+    environments, once their import has finished.
     """
     global _manager, _loading
     manager = _manager
     if manager is not None:
+        if manager.deferred:
+            _register_deferred(manager)
         return manager
     with _lock:
         if _manager is not None:
@@ -324,6 +362,15 @@ def get_plugin_manager() -> GymPrecicePluginManager:
             _loading = None
         _manager = manager
         return manager
+
+
+def _register_deferred(manager: GymPrecicePluginManager) -> None:
+    with _lock:
+        names = manager.register_deferred()
+    if names:
+        from gymprecice.plugin.registration import register_environments
+
+        register_environments(manager, only=names)
 
 
 def reset_plugin_manager() -> None:

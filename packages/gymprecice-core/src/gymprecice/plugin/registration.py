@@ -43,8 +43,11 @@ def registered_environments() -> dict[str, str]:
     return dict(_registered)
 
 
-def register_environments(pm: GymPrecicePluginManager | None = None) -> list[str]:
-    """Call every plugin's ``gymprecice_register_environments``; return the new ids.
+def register_environments(
+    pm: GymPrecicePluginManager | None = None, only: list[str] | None = None
+) -> list[str]:
+    """Call every plugin's ``gymprecice_register_environments`` (``only``: the plugins of
+    these names); return the new ids.
 
     Safe to call again (for example after :func:`~gymprecice.plugins.register_plugin`):
     ids that exist already are skipped.
@@ -55,6 +58,8 @@ def register_environments(pm: GymPrecicePluginManager | None = None) -> list[str
     added: list[str] = []
     # Same order pluggy would call them in: the most recently registered plugin first.
     for impl in reversed(pm.hook.gymprecice_register_environments.get_hookimpls()):
+        if only is not None and impl.plugin_name not in only:
+            continue
         register = _registrar(gymnasium, impl.plugin_name, added)
         try:
             impl.function(**_arguments(impl.argnames, register=register))

@@ -15,7 +15,7 @@ import gymnasium as gym
 
 from gymprecice_lab.benchmarking.checks import BenchmarkError
 from gymprecice_lab.benchmarking.remote_commands import RemoteCommand
-from gymprecice_lab.common.command_runs import run_commands
+from gymprecice_lab.common.command_runs import CommandFailed, run_commands
 
 __all__ = ["check_ray", "run_everywhere", "solver_cpus", "sweep_cpus"]
 
@@ -55,15 +55,17 @@ def _input_options(command: RemoteCommand) -> list[str]:
     return [item for option, path in command.inputs.items() for item in (option, str(path))]
 
 
-def check_ray(address: str, needs: Sequence[tuple[str, float]]) -> None:
+def check_ray(address: str, needs: Sequence[tuple[str, float]], command: str = "benchmark") -> None:
     """Refuse ``--ray`` before anything trains when Ray is missing, no cluster answers, or
-    no node has the CPUs one of ``needs`` (what, CPUs on one node) asks for."""
+    no node has the CPUs one of ``needs`` (what, CPUs on one node) asks for: one line
+    ``gymprecice COMMAND: ...`` and exit status 2 (:class:`CommandFailed`)."""
     try:
         import ray
     except ImportError:
-        raise BenchmarkError(
+        raise CommandFailed(
+            command,
             "--ray needs Ray on this machine and every node: pip install "
-            "'gymprecice-core[ray]' (see docs/cluster.md)"
+            "'gymprecice-core[ray]' (see docs/cluster.md)",
         ) from None
     host, _, port = address.rpartition(":")
     try:
@@ -73,10 +75,11 @@ def check_ray(address: str, needs: Sequence[tuple[str, float]]) -> None:
             socket.create_connection((host, int(port)), timeout=5).close()
         ray.init(address=address, log_to_driver=False)
     except (OSError, RuntimeError, ValueError) as exc:  # ConnectionError is an OSError
-        raise BenchmarkError(
+        raise CommandFailed(
+            command,
             f"--ray {address}: no Ray cluster answers there "
             f"({getattr(exc, 'strerror', None) or exc}); start one (ray start --head, see "
-            "docs/cluster.md) or pass its head's address"
+            "docs/cluster.md) or pass its head's address",
         ) from None
     else:
         from gymprecice_lab.benchmarking.remote_commands import (
@@ -88,7 +91,7 @@ def check_ray(address: str, needs: Sequence[tuple[str, float]]) -> None:
         try:
             check_fits(needs, largest_node_cpus())
         except RemoteCommandError as exc:
-            raise BenchmarkError(f"--ray {address}: {exc}") from None
+            raise CommandFailed(command, f"--ray {address}: {exc}") from None
     finally:
         if ray.is_initialized():
             ray.shutdown()

@@ -22,8 +22,9 @@ def _tune() -> Command:
         "search hyperparameters (Optuna: TPE sampler, median pruner on validation scores)",
         "Search the hyperparameters of PPO, SAC or TD3 on a registered environment, as RL "
         "Zoo does: each trial is a `gymprecice train` run in <out>/trials/N, scored by its "
-        "kept model (the best mean return on the env's validation starts; held-out starts "
-        "are never read), and pruned when its validations lag the others'. A trial whose "
+        "kept model (the best on the env's validation starts: the mean return, or the "
+        "settled fraction of the floor for an env with a physical reference; held-out "
+        "starts are never read), and pruned when its validations lag the others'. A trial whose "
         "solver fails is pruned with its reason recorded. The study is kept in SQLite in "
         "--out (or --storage): the same command resumes a search killed at any point. "
         "Writes best_hyperparams.yml (for train --hyperparams), tune.json, history.png and "
@@ -81,6 +82,11 @@ def _tune() -> Command:
                 type=positive_int,
                 default=1,
                 help="trials at once, each in its own process on the same study",
+            ),
+            o.RAY.but(
+                help="run the --n-jobs workers as Ray tasks on a Ray cluster (auto: the "
+                "one this machine joined), each with --n-envs CPUs on one node; the study "
+                "must be in a --storage every node reaches (see docs/cluster.md)"
             ),
             option("--no-progress-bar", action="store_true", help="no progress bar"),
         ),

@@ -103,6 +103,8 @@ class TuneSettings(RunsOnEnv):
     #: ``--study-name`` (None: ``<env>-<algo>``)
     study_name: str | None
     n_jobs: int
+    #: ``--ray auto|ADDRESS``: the ``--n-jobs`` workers run as Ray tasks there
+    ray: str | None
     no_progress_bar: bool
 
     @cached_property

@@ -42,6 +42,14 @@ from typing import Any
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError
 from gymprecice_lab.training.command_settings import TuneSettings
 from gymprecice_lab.training.tune_spaces import sample, space_names
+from gymprecice_lab.training.tune_workers import (
+    NODE_VARIABLE,
+    WORKER_VARIABLE,
+    die_with_parent,
+    run_workers_here,
+    run_workers_on_ray,
+    worker_commands,
+)
 
 __all__ = ["TuneError", "objective", "open_study", "tune_command"]
 
@@ -59,9 +67,6 @@ class TuneError(Exception):
 
 
 # -- the study -------------------------------------------------------------------------------
-
-#: the environment variable that tells an ``--n-jobs`` worker process its index
-WORKER_VARIABLE = "GYMPRECICE_TUNE_WORKER"
 
 
 def sampler_seed(seed: int, trials_so_far: int, worker: int) -> int:
@@ -191,6 +196,8 @@ def objective(trial: Any, settings: TuneSettings, env: LabEnv, out: Path) -> flo
     (run / "hyperparams.yml").write_text(yaml.safe_dump({env.env_id: params}, sort_keys=True))
     trial.set_user_attr("hyperparams", params)
     trial.set_user_attr("run", str(run))
+    if os.environ.get(NODE_VARIABLE):  # a worker on a Ray cluster: where the trial trains
+        trial.set_user_attr("ray_node", os.environ[NODE_VARIABLE])
     argv = _train_argv(settings, env, run)
     status, reported, pruned = _watch(trial, argv, run)
     if pruned:
@@ -292,7 +299,7 @@ def _child(argv: list[str], log: Any) -> Iterator[subprocess.Popen[bytes]]:
         argv,
         stdout=log,
         stderr=subprocess.STDOUT,
-        preexec_fn=_die_with_parent,
+        preexec_fn=die_with_parent,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},  # no buffer copied into its forks
     )
     try:
@@ -305,13 +312,6 @@ def _child(argv: list[str], log: Any) -> Iterator[subprocess.Popen[bytes]]:
             except subprocess.TimeoutExpired:
                 child.kill()
                 child.wait()
-
-
-def _die_with_parent() -> None:
-    import ctypes
-
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG
 
 
 def _failure(run: Path, status: int) -> str:
@@ -350,6 +350,8 @@ def _tune(settings: TuneSettings) -> int:
                 f"--params {','.join(unknown)}: {algo.upper()}'s search space has no "
                 f"such parameter; choose from {', '.join(space_names(algo))}"
             )
+    if settings.ray:
+        _check_ray(settings.ray, settings.n_envs)
     if not settings.double:
         from gymprecice_lab.common.requirements import require_solvers
 
@@ -389,17 +391,32 @@ def _tune(settings: TuneSettings) -> int:
         return 0
     print(
         f"gymprecice tune: {env.name}, {algo.upper()}, study {name!r} in {storage}: "
-        f"{done} trial(s) finished, {todo} to run ({settings.n_jobs} at once), each "
+        f"{done} trial(s) finished, {todo} to run ({settings.n_jobs} at once"
+        f"{f' on the Ray cluster at {settings.ray}' if settings.ray else ''}), each "
         f"{settings.timesteps:,} steps on {settings.n_envs} env(s) validated every "
         f"{settings.validate_every:,}; trials in {out / 'trials'}",
         flush=True,
     )
-    if todo:
-        if settings.n_jobs > 1:
-            _optimize_in_workers(settings, storage, name, todo)
+    if todo and (settings.n_jobs > 1 or settings.ray):
+        commands = worker_commands(
+            sys.argv[1:], settings.trials, settings.n_jobs, storage, name, todo
+        )
+        if settings.ray:
+            for line in run_workers_on_ray(commands, settings.ray, settings.n_envs):
+                print(f"gymprecice tune: {line}", flush=True)
         else:
-            _optimize(study, settings, env, out, todo)
+            run_workers_here(commands)
+    elif todo:
+        _optimize(study, settings, env, out, todo)
     return _report(study, settings, env, out, name)
+
+
+def _check_ray(address: str, cpus: int) -> None:
+    """Refuse ``--ray`` before anything is written when Ray is missing, no cluster
+    answers, or no node has the CPUs of one trial (one line, exit status 2)."""
+    from gymprecice_lab.benchmarking.dispatch import check_ray
+
+    check_ray(address, [("a trial (--n-envs)", float(cpus))], "tune")
 
 
 def _counted(study: Any) -> int:
@@ -424,55 +441,6 @@ def _optimize(study: Any, settings: TuneSettings, env: LabEnv, out: Path, n: int
         show_progress_bar=not settings.no_progress_bar,
         gc_after_trial=True,
     )
-
-
-def _optimize_in_workers(settings: TuneSettings, storage: str, name: str, n: int) -> None:
-    """``--n-jobs`` worker processes, each running trials of the one study (each the same
-    command with ``--n-jobs 1`` and its share of the trials)."""
-    argv = [a for a in sys.argv[1:]]
-    workers = []
-    for k in range(settings.n_jobs):
-        share = n // settings.n_jobs + (1 if k < n % settings.n_jobs else 0)
-        if not share:
-            continue
-        cmd = [
-            sys.executable,
-            "-m",
-            "gymprecice",
-            *_without(argv, ("--n-jobs", "--trials", "--storage")),
-            "--n-jobs",
-            "1",
-            "--trials",
-            str(settings.trials),
-            "--storage",
-            storage,
-            "--study-name",
-            name,
-            "--no-progress-bar",
-        ]
-        workers.append(
-            subprocess.Popen(
-                cmd, preexec_fn=_die_with_parent, env={**os.environ, WORKER_VARIABLE: str(k)}
-            )
-        )
-    for worker in workers:
-        worker.wait()
-
-
-def _without(argv: list[str], flags: tuple[str, ...]) -> list[str]:
-    """``argv`` without ``flags`` and their values (``--flag V`` or ``--flag=V``)."""
-    out, skip = [], False
-    for arg in argv:
-        if skip:
-            skip = False
-            continue
-        if arg in flags:
-            skip = True
-            continue
-        if any(arg.startswith(f"{flag}=") for flag in flags):
-            continue
-        out.append(arg)
-    return out
 
 
 def _report(study: Any, settings: TuneSettings, env: LabEnv, out: Path, name: str) -> int:
