@@ -427,6 +427,7 @@ def test_evaluate_all_starts_on_an_env_without_them_runs_its_seeds(tmp_path, cap
     [
         ("sac", Discrete(3), "SAC acts only in a continuous Box"),
         ("td3", Box(-np.inf, np.inf, (1,)), "unbounded"),
+        ("tqc", Discrete(3), "TQC acts only in a continuous Box"),
     ],
 )
 def test_an_algorithm_that_does_not_fit_the_action_space_is_refused(
@@ -438,7 +439,7 @@ def test_an_algorithm_that_does_not_fit_the_action_space_is_refused(
 
 
 def test_an_algorithm_that_fits_passes() -> None:
-    for algo in ("ppo", "sac", "td3"):
+    for algo in ("ppo", "sac", "td3", "tqc"):
         check_algorithm_fits(algo, Box(-1.0, 1.0, (1,)))
     check_algorithm_fits("ppo", Discrete(3))
 
@@ -446,7 +447,7 @@ def test_an_algorithm_that_fits_passes() -> None:
 def test_an_unknown_algorithm_is_refused_naming_the_choices(capsys) -> None:
     with pytest.raises(BenchmarkError):
         parse_algorithms("ppo,dqn")
-    assert "unknown dqn; choose from ppo, sac, td3" in capsys.readouterr().err
+    assert "unknown dqn; choose from ppo, sac, td3, tqc" in capsys.readouterr().err
 
 
 def test_a_training_flag_the_algorithm_lacks_is_refused_before_training(

@@ -19,7 +19,7 @@ import numpy as np
 from gymprecice_lab.benchmarking.command_settings import BenchmarkSettings
 from gymprecice_lab.common.command_runs import CommandFailed
 from gymprecice_lab.common.registered_env import LabEnv
-from gymprecice_lab.training.hyperparams import ALGORITHMS
+from gymprecice_lab.training.hyperparams import ALGORITHMS, OFF_POLICY
 
 __all__ = [
     "DEFAULT_FEEDBACK_GAINS",
@@ -87,7 +87,7 @@ def parse_train_args(given: Sequence[str], algos: Sequence[str]) -> dict[str, li
 def check_algorithm_fits(algo: str, space: gym.Space) -> None:
     """Refuse an algorithm that cannot act in ``space`` (before anything trains)."""
     box = isinstance(space, gym.spaces.Box)
-    if algo in ("sac", "td3"):
+    if algo in OFF_POLICY:
         if not box:
             raise BenchmarkError(
                 f"--algo {algo}: {algo.upper()} acts only in a continuous Box action space; "

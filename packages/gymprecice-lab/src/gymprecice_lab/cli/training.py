@@ -20,7 +20,7 @@ def _tune() -> Command:
     return Command(
         "tune",
         "search hyperparameters (Optuna: TPE sampler, median pruner on validation scores)",
-        "Search the hyperparameters of PPO, SAC or TD3 on a registered environment, as RL "
+        "Search the hyperparameters of PPO, SAC, TD3 or TQC on a registered environment, as RL "
         "Zoo does: each trial is a `gymprecice train` run in <out>/trials/N, scored by its "
         "kept model (the best on the env's validation starts: the mean return, or the "
         "settled fraction of the floor for an env with a physical reference; held-out "
@@ -202,13 +202,14 @@ _KEEPING = (
 def _train() -> Command:
     return Command(
         "train",
-        "train a controller (Stable-Baselines3 PPO, SAC or TD3) on N parallel environments",
-        "Train PPO, SAC or TD3 on a registered environment. Resumes from the newest "
+        "train a controller (Stable-Baselines3 PPO, SAC, TD3; sb3-contrib TQC) on N parallel "
+        "environments",
+        "Train PPO, SAC, TD3 or TQC on a registered environment. Resumes from the newest "
         "checkpoint in --out unless --fresh is given; a resume must use the run's "
         "hyperparameters. Ctrl-C, SIGTERM and SIGHUP save the model and a checkpoint. "
         "Hyperparameters shown as None take the algorithm's default (ppo: n_steps 80, "
-        "batch_size 80, n_epochs 10, learning_rate 3e-4, gamma 0.99, net 512,512; sac/td3: "
-        "batch_size 256, net 256,256, SB3's others, td3 with Gaussian action noise of std "
+        "batch_size 80, n_epochs 10, learning_rate 3e-4, gamma 0.99, net 512,512; sac/td3/tqc: "
+        "batch_size 256, net 256,256, SB3's others (tqc: sb3-contrib's), td3 with Gaussian action noise of std "
         "0.1), then --hyperparams, then the flag.",
         (*o.env_options(rollout=False), o.ALGO, *_TRAINING, *_KEEPING),
         functools.partial(run, "train"),

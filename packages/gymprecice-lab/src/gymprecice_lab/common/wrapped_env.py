@@ -422,13 +422,18 @@ def _pickle_intact(path: Path) -> bool:
 
 
 def load_model(path: Path, device: str = "cpu") -> Any:
-    """A saved SB3 model of any algorithm ``gymprecice train`` offers (PPO, SAC, TD3)."""
+    """A saved SB3 model of any algorithm ``gymprecice train`` offers (PPO, SAC, TD3,
+    sb3-contrib's TQC), told apart by its policy's class."""
     from stable_baselines3 import PPO, SAC, TD3
     from stable_baselines3.common.save_util import load_from_zip_file
 
     data, _, _ = load_from_zip_file(path, device=device, load_data=True)
-    policy = str((data or {}).get("policy_class", ""))
-    cls = SAC if "sac" in policy.lower() else TD3 if "td3" in policy.lower() else PPO
+    policy = str((data or {}).get("policy_class", "")).lower()
+    if "tqc" in policy:
+        from sb3_contrib import TQC
+
+        return TQC.load(path, device=device)
+    cls = SAC if "sac" in policy else TD3 if "td3" in policy else PPO
     return cls.load(path, device=device)
 
 

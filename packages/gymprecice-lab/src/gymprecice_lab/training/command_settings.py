@@ -25,7 +25,7 @@ class TrainSettings(EnvSettings):
     learns, then how the run is kept and shown."""
 
     # -- the learner: the algorithm, its hyperparameter file, its budget ------------------
-    #: ``--algo``: ppo, sac or td3
+    #: ``--algo``: ppo, sac, td3 or tqc
     algo: str
     #: ``--hyperparams FILE.yaml`` (RL Zoo style), copied into the run
     hyperparams: Path | None
@@ -83,7 +83,7 @@ class TuneSettings(RunsOnEnv):
     env_kwargs: Mapping[str, Any]
 
     # -- the search ----------------------------------------------------------------------
-    #: ``--algo``: ppo, sac or td3
+    #: ``--algo``: ppo, sac, td3 or tqc
     algo: str
     #: ``--trials``: trials in the study
     trials: int

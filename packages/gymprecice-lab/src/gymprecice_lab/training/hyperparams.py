@@ -37,6 +37,7 @@ SHARED_KEY = "shared_policy"
 
 __all__ = [
     "ALGORITHMS",
+    "OFF_POLICY",
     "DEFAULTS",
     "FLAGS",
     "HYPERPARAMS_NAME",
@@ -52,7 +53,9 @@ __all__ = [
     "with_robustness",
 ]
 
-ALGORITHMS = ("ppo", "sac", "td3")
+ALGORITHMS = ("ppo", "sac", "td3", "tqc")
+#: the off-policy algorithms (a replay buffer, SB3's ``gradient_steps``, overlap_updates)
+OFF_POLICY = ("sac", "td3", "tqc")
 HYPERPARAMS_NAME = "hyperparams.json"
 
 #: Defaults per algorithm. PPO's ``n_steps`` of 80 is one jet-cylinder episode; SAC/TD3
@@ -68,6 +71,18 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "normalize": False,
     },
     "sac": {
+        "batch_size": 256,
+        "learning_rate": 3e-4,
+        "gamma": 0.99,
+        "net": [256, 256],
+        "buffer_size": 100_000,
+        "learning_starts": 100,
+        "normalize": False,
+    },
+    # sb3-contrib's TQC (Truncated Quantile Critics, Kuznetsov et al. 2020): SAC with
+    # distributional critics whose top quantiles are dropped against overestimation;
+    # SB3-contrib's defaults otherwise (5 critics of 25 quantiles, 2 dropped per critic)
+    "tqc": {
         "batch_size": 256,
         "learning_rate": 3e-4,
         "gamma": 0.99,
@@ -138,7 +153,12 @@ def algorithm_class(algo: str, params: Mapping[str, Any] | None = None) -> type:
         from gymprecice_lab.model_based.ppo import ModelEnsemblePPO
 
         return ModelEnsemblePPO
-    cls = {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
+    if algo == "tqc":
+        from sb3_contrib import TQC
+
+        cls: type = TQC
+    else:
+        cls = {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
     if algo != "ppo" and params is not None and params.get(OVERLAP_KEY):
         from gymprecice_lab.training.overlap import overlapping
 

@@ -1,4 +1,4 @@
-"""``gymprecice train``: PPO, SAC or TD3 (Stable-Baselines3) on N parallel envs of any id.
+"""``gymprecice train``: PPO, SAC, TD3 (Stable-Baselines3) or TQC (sb3-contrib) on N envs.
 
 What a long training run on a shared machine or a cluster needs, and how it is met:
 

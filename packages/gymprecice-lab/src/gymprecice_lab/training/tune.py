@@ -41,7 +41,7 @@ from typing import Any
 
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError
 from gymprecice_lab.training.command_settings import TuneSettings
-from gymprecice_lab.training.tune_spaces import sample, space_names
+from gymprecice_lab.training.tune_spaces import SPACES, sample, space_names
 from gymprecice_lab.training.tune_workers import (
     NODE_VARIABLE,
     WORKER_VARIABLE,
@@ -341,8 +341,8 @@ def _tune(settings: TuneSettings) -> int:
 
     env = settings.lab_env
     algo = settings.algo
-    if algo not in ("ppo", "sac", "td3"):
-        raise TuneError(f"--algo {algo}: choose ppo, sac or td3")
+    if algo not in SPACES:
+        raise TuneError(f"--algo {algo}: choose {', '.join(SPACES)}")
     if settings.params:
         unknown = sorted(set(settings.params) - set(space_names(algo)))
         if unknown:

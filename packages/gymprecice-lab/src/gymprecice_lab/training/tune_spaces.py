@@ -3,7 +3,7 @@
 RL Zoo's spaces (``rl_zoo3/hyperparams_opt.py``) are sized for millions of cheap steps;
 a coupled simulation gives thousands. So the spaces here keep RL Zoo's parameters and
 their log-uniform learning rate, and scale what depends on the budget to the trial's
-``timesteps``: SAC's and TD3's ``learning_starts`` are fractions of it, PPO's rollout
+``timesteps``: SAC's, TQC's and TD3's ``learning_starts`` are fractions of it, PPO's rollout
 lengths stay a few episodes. Each sampler returns hyperparameters under the names a
 ``--hyperparams`` file takes (:mod:`gymprecice_lab.training.hyperparams`), so the best trial's
 are written as such a file.
@@ -49,6 +49,16 @@ def _off_policy(trial: Any, timesteps: int, n_envs: int) -> dict[str, Any]:
     }
 
 
+def _tqc(trial: Any, timesteps: int, n_envs: int) -> dict[str, Any]:
+    # RL Zoo's TQC space: SAC's, and how many of each critic's 25 quantiles to drop
+    return {
+        **_off_policy(trial, timesteps, n_envs),
+        "top_quantiles_to_drop_per_net": trial.suggest_categorical(
+            "top_quantiles_to_drop_per_net", [0, 1, 2, 3, 5]
+        ),
+    }
+
+
 def _td3(trial: Any, timesteps: int, n_envs: int) -> dict[str, Any]:
     return {
         **_off_policy(trial, timesteps, n_envs),
@@ -82,6 +92,7 @@ SPACES: dict[str, tuple[Callable[[Any, int, int], dict[str, Any]], tuple[str, ..
     "ppo": (_ppo, _PPO_NAMES),
     "sac": (_off_policy, _OFF_POLICY_NAMES),
     "td3": (_td3, (*_OFF_POLICY_NAMES, "noise_std")),
+    "tqc": (_tqc, (*_OFF_POLICY_NAMES, "top_quantiles_to_drop_per_net")),
 }
 
 
@@ -109,6 +120,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
     },
 }
 DEFAULTS["td3"] = {**DEFAULTS["sac"], "learning_rate": 1e-3, "noise_std": 0.1}
+DEFAULTS["tqc"] = {**DEFAULTS["sac"], "top_quantiles_to_drop_per_net": 2}
 
 
 class _Subset:
