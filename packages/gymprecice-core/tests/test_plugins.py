@@ -465,6 +465,35 @@ def test_broken_environment_plugin_does_not_stop_the_others(fresh, env_ids) -> N
     assert added == [good_id]
 
 
+#: an env module whose reset observes 0.5 (a plugin's environment, in a subprocess)
+ONE_NUMBER_ENV = """
+import gymnasium, numpy as np
+
+class Env(gymnasium.Env):
+    observation_space = gymnasium.spaces.Box(-1.0, 1.0, (1,), np.float32)
+    action_space = gymnasium.spaces.Discrete(2)
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        return np.full(1, 0.5, np.float32), {}
+
+    def step(self, action):
+        return np.zeros(1, np.float32), 0.0, True, False, {}
+"""
+
+
+def _run_with(root: Path, code: str) -> dict:
+    """``code`` in a fresh interpreter with the distribution at ``root`` installed and
+    every plugin enabled; the JSON of its last line."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), *sys.path]))
+    env.pop(DISABLE_ENV_VAR, None)
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
 IMPORT_CHECK = """
 import json, sys, warnings
 warnings.simplefilter("always")
@@ -496,34 +525,11 @@ def test_import_gymprecice_registers_lazily_and_survives_a_broken_plugin(distrib
             def gymprecice_register_environments(register):
                 register("{env_id}", entry_point="{impl}:Env")
             """,
-            impl: """
-            import gymnasium, numpy as np
-
-            class Env(gymnasium.Env):
-                observation_space = gymnasium.spaces.Box(-1.0, 1.0, (1,), np.float32)
-                action_space = gymnasium.spaces.Discrete(2)
-
-                def reset(self, *, seed=None, options=None):
-                    super().reset(seed=seed)
-                    return np.full(1, 0.5, np.float32), {}
-
-                def step(self, action):
-                    return np.zeros(1, np.float32), 0.0, True, False, {}
-            """,
+            impl: ONE_NUMBER_ENV,
             bad: "raise RuntimeError('plugin exploded')\n",
         },
     )
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), *sys.path]))
-    env.pop(DISABLE_ENV_VAR, None)
-    proc = subprocess.run(
-        [sys.executable, "-c", IMPORT_CHECK.format(impl=impl, env_id=env_id)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
-    assert proc.returncode == 0, proc.stderr
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    result = _run_with(root, IMPORT_CHECK.format(impl=impl, env_id=env_id))
     assert any("'bad'" in w and "plugin exploded" in w for w in result["warnings"])
     assert result["lazy_before_make"] is True
     assert result["obs"] == [0.5]
@@ -538,10 +544,9 @@ def test_import_gymprecice_registers_nothing_twice() -> None:
 
 
 FIRST_IMPORT_CHECK = """
-import json, warnings
-warnings.simplefilter("error")  # a plugin registered without its hooks would warn nothing
+import json
 import {plugin}  # the plugin module first: it imports gymprecice at its top
-from gymprecice.plugins import get_plugin_manager, solver_kinds
+from gymprecice.plugins import solver_kinds
 kinds = solver_kinds()
 import gymnasium
 env = gymnasium.make("{env_id}")
@@ -554,26 +559,14 @@ def test_a_plugin_module_imported_before_gymprecice_keeps_its_hooks(distribution
     while gymprecice loads the plugins: it is registered once its import has finished,
     with every hook and its environments, at the next use of the plugin manager (pluggy
     would otherwise have registered it without hooks, for good)."""
-    plugin = _unique("early_plugin")
+    plugin, impl = _unique("early_plugin"), _unique("early_impl")
     env_id = f"early/Early{uuid.uuid4().hex[:6]}-v0"
     root = distribution(
         "early-dist",
         {"early": plugin},
         {
             plugin: f"""
-            import gymnasium, numpy as np
             from gymprecice.plugin.hookspecs import hookimpl
-
-            class Env(gymnasium.Env):
-                observation_space = gymnasium.spaces.Box(-1.0, 1.0, (1,), np.float32)
-                action_space = gymnasium.spaces.Discrete(2)
-
-                def reset(self, *, seed=None, options=None):
-                    super().reset(seed=seed)
-                    return np.full(1, 0.25, np.float32), {{}}
-
-                def step(self, action):
-                    return np.zeros(1, np.float32), 0.0, True, False, {{}}
 
             @hookimpl
             def gymprecice_solver_kinds():
@@ -581,20 +574,11 @@ def test_a_plugin_module_imported_before_gymprecice_keeps_its_hooks(distribution
 
             @hookimpl
             def gymprecice_register_environments(register):
-                register("{env_id}", entry_point="{plugin}:Env")
-            """
+                register("{env_id}", entry_point="{impl}:Env")
+            """,
+            impl: ONE_NUMBER_ENV,
         },
     )
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), *sys.path]))
-    env.pop(DISABLE_ENV_VAR, None)
-    proc = subprocess.run(
-        [sys.executable, "-c", FIRST_IMPORT_CHECK.format(plugin=plugin, env_id=env_id)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
-    assert proc.returncode == 0, proc.stderr
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    result = _run_with(root, FIRST_IMPORT_CHECK.format(plugin=plugin, env_id=env_id))
     assert "early-kind" in result["kinds"]
-    assert result["obs"] == [0.25]
+    assert result["obs"] == [0.5]

@@ -79,18 +79,6 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "learning_starts": 100,
         "normalize": False,
     },
-    # sb3-contrib's TQC (Truncated Quantile Critics, Kuznetsov et al. 2020): SAC with
-    # distributional critics whose top quantiles are dropped against overestimation;
-    # SB3-contrib's defaults otherwise (5 critics of 25 quantiles, 2 dropped per critic)
-    "tqc": {
-        "batch_size": 256,
-        "learning_rate": 3e-4,
-        "gamma": 0.99,
-        "net": [256, 256],
-        "buffer_size": 100_000,
-        "learning_starts": 100,
-        "normalize": False,
-    },
     "td3": {
         "batch_size": 256,
         "learning_rate": 1e-3,
@@ -106,6 +94,10 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "noise_std": 0.1,
     },
 }
+# sb3-contrib's TQC (Truncated Quantile Critics, Kuznetsov et al. 2020): SAC with
+# distributional critics whose top quantiles are dropped against overestimation; SAC's
+# defaults here, sb3-contrib's otherwise (5 critics of 25 quantiles, 2 dropped per critic)
+DEFAULTS["tqc"] = dict(DEFAULTS["sac"])
 
 #: Hyperparameter -> the ``gymprecice train`` flag that sets it (for error messages).
 FLAGS = {
