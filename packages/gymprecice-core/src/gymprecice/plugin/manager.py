@@ -40,7 +40,7 @@ import importlib.metadata
 import os
 import threading
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -75,6 +75,7 @@ __all__ = [
     "SolverKind",
     "get_plugin_manager",
     "list_plugins",
+    "on_late_plugins",
     "plugin_failures",
     "register_plugin",
     "reset_plugin_manager",
@@ -364,13 +365,24 @@ def get_plugin_manager() -> GymPrecicePluginManager:
         return manager
 
 
+#: called with the manager and the names of deferred plugins once they are registered
+#: (:mod:`gymprecice.plugin.registration` registers their environments)
+_late_plugin_listeners: list[Callable[[GymPrecicePluginManager, list[str]], object]] = []
+
+
+def on_late_plugins(listener: Callable[[GymPrecicePluginManager, list[str]], object]) -> None:
+    """Call ``listener(manager, names)`` whenever plugins deferred because they were half
+    imported are registered (see the module's docstring)."""
+    if listener not in _late_plugin_listeners:
+        _late_plugin_listeners.append(listener)
+
+
 def _register_deferred(manager: GymPrecicePluginManager) -> None:
     with _lock:
         names = manager.register_deferred()
     if names:
-        from gymprecice.plugin.registration import register_environments
-
-        register_environments(manager, only=names)
+        for listener in list(_late_plugin_listeners):
+            listener(manager, names)
 
 
 def reset_plugin_manager() -> None:

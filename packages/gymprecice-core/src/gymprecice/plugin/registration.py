@@ -30,7 +30,12 @@ from collections.abc import Callable
 from typing import Any
 
 from gymprecice.plugin.card import CardError, record_card
-from gymprecice.plugin.manager import GymPrecicePluginManager, PluginWarning, get_plugin_manager
+from gymprecice.plugin.manager import (
+    GymPrecicePluginManager,
+    PluginWarning,
+    get_plugin_manager,
+    on_late_plugins,
+)
 
 __all__ = ["register_environments", "registered_environments"]
 
@@ -94,3 +99,11 @@ def _registrar(gymnasium: Any, plugin_name: str, added: list[str]) -> Callable[.
 def _arguments(argnames: tuple[str, ...], **available: Any) -> dict[str, Any]:
     """Pass only the hook arguments an implementation declares (pluggy allows fewer)."""
     return {name: available[name] for name in argnames if name in available}
+
+
+def _register_late(pm: GymPrecicePluginManager, names: list[str]) -> None:
+    """The environments of plugins registered late (met half imported, then finished)."""
+    register_environments(pm, only=names)
+
+
+on_late_plugins(_register_late)
