@@ -9,6 +9,11 @@ again as ``docs/PAGE.md:LINE: warning`` (the lines where the link's target is wr
 The build needs no network (no external inventories, the theme's fonts off) and writes to
 ``site/`` (ignored by git). The test suite runs it (tests/test_docs_site.py).
 
+The site offers the source it documents: before the build, the committed tree (``git
+archive HEAD``; the files on disk outside a git checkout) is packed as
+``docs/downloads/gymprecice-source.tar.gz`` (ignored by git), which the site serves and Get
+started links, so a reader of the site alone can set up a machine.
+
 A machine without the site's dependencies gets their names and the command that installs
 them (docs/requirements.txt; scripts/setup.sh installs it into .venv).
 """
@@ -140,11 +145,55 @@ class BuildResult:
     output: str
 
 
+#: the source archive the site serves (Get started links it)
+SOURCE_ARCHIVE = DOCS / "downloads" / "gymprecice-source.tar.gz"
+#: what a source archive made outside a git checkout leaves out (build outputs, venvs)
+_NOT_SOURCE = {
+    ".git",
+    ".venv",
+    ".venv-rllib",
+    ".pytest_cache",
+    ".ruff_cache",
+    "site",
+    "runs",
+    "build",
+    "dist",
+    "__pycache__",
+}
+
+
+def write_source_archive(path: Path = SOURCE_ARCHIVE) -> Path:
+    """Pack the source under ``gymprecice/`` into ``path``: ``git archive HEAD`` in a git
+    checkout, else every file below the root but build outputs and virtual environments."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")  # builds side by side: their own
+    git = subprocess.run(
+        ["git", "archive", "--format=tar.gz", "--prefix=gymprecice/", "-o", str(tmp), "HEAD"],
+        cwd=ROOT,
+        capture_output=True,
+    )
+    if git.returncode != 0:
+        import tarfile
+
+        with tarfile.open(tmp, "w:gz") as tar:
+            for file in sorted(ROOT.rglob("*")):
+                relative = file.relative_to(ROOT)
+                built = bool(_NOT_SOURCE & set(relative.parts)) or any(
+                    part.endswith(".egg-info") for part in relative.parts
+                )
+                served = relative.parts[:2] == ("docs", "downloads")  # this very archive
+                if file.is_file() and not built and not served:
+                    tar.add(file, arcname=f"gymprecice/{relative}")
+    tmp.replace(path)
+    return path
+
+
 def build(site_dir: Path | None = None) -> BuildResult:
     """``mkdocs build --strict``; ``problems`` are its warnings and errors, placed by line."""
     missing = missing_requirements()
     if missing:
         return BuildResult(False, [install_advice(missing)], "")
+    write_source_archive()
     command = [sys.executable, "-m", "mkdocs", "build", "--strict", "--config-file", "mkdocs.yml"]
     if site_dir is not None:
         command += ["--site-dir", str(site_dir)]

@@ -67,6 +67,23 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Built]:
         shutil.copytree(site, ROOT / "site", dirs_exist_ok=True)
 
 
+def test_the_site_serves_the_source_that_get_started_sets_up(built: Built) -> None:
+    """A reader of the site alone gets the source: the archive Get started links holds the
+    set-up and test commands and every distribution, as committed."""
+    import tarfile
+
+    assert built.result.ok
+    page = (built.site / "get-started.html").read_text()
+    assert 'href="downloads/gymprecice-source.tar.gz"' in page
+    with tarfile.open(built.site / "downloads" / "gymprecice-source.tar.gz") as tar:
+        names = set(tar.getnames())
+    for path in ("README.md", "scripts/setup.sh", "scripts/test.sh", "pyproject.toml"):
+        assert f"gymprecice/{path}" in names, path
+    for package in ("core", "openfoam", "dealii", "fenics", "lab", "tutorials"):
+        assert f"gymprecice/packages/gymprecice-{package}/pyproject.toml" in names, package
+    assert not [n for n in names if n.startswith(("gymprecice/.venv", "gymprecice/runs/"))]
+
+
 @pytest.mark.timeout(120)
 def test_the_site_builds_strictly_in_under_a_minute(built: Built) -> None:
     result, took = built.result, built.seconds
