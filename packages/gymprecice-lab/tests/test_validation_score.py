@@ -119,3 +119,29 @@ def test_the_jet_keeps_the_model_best_on_settled_drag_over_longer_episodes(tmp_p
     results = np.load(tmp_path / "run" / "eval" / "evaluations.npz")["results"]
     assert record["mean_return"] == pytest.approx(results.mean(axis=1).max(), abs=1e-5)
     assert -1.0 < record["mean_return"] < 1.5  # a fraction of the floor, not a return
+
+
+def test_a_run_resumed_under_another_score_does_not_compare_a_return_with_a_fraction(tmp_path):
+    """A jet run whose kept model was chosen on the return (9.7), resumed by a gymprecice
+    that scores the settled fraction of the floor (about 1 at best), must not keep the
+    old model for ever: its validations start afresh. One with the same score resumes its
+    best."""
+    import math
+
+    from gymprecice_lab.common.registered_env import find_lab_env
+    from gymprecice_lab.training.validation import eval_callback
+
+    env = find_lab_env("jet-cylinder-fast")
+    kwargs = {"double": True, "episode_time": 0.25, "run_root": str(tmp_path / "envs")}
+    (tmp_path / "eval").mkdir()
+    best = tmp_path / "eval" / "best.json"
+    for score, expected in (
+        ("mean validation return", -math.inf),
+        ("settled fraction of the drag floor", 9.7),
+    ):
+        best.write_text(json.dumps({"mean_return": 9.7, "timesteps": 800, "score": score}))
+        callback = eval_callback(env, tmp_path, kwargs, 1, 10, None, 0, False)
+        try:
+            assert callback.best_mean_reward == expected
+        finally:
+            callback.eval_env.close()

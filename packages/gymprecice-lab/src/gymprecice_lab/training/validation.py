@@ -10,8 +10,9 @@ kept as ``best_model.zip`` with ``eval/best.json``: its step, its score, its wal
 from the typed command, and the starts it was scored on. The score is the mean
 validation return, or, for an env whose card declares a physical reference (a drag
 floor), the fraction of the floor it reaches once settled, over longer episodes
-(:mod:`gymprecice_lab.training.validation_score`): what the benchmark judges. The held-out starts never choose: judging a model on the starts that chose it would
-flatter it.
+(:mod:`gymprecice_lab.training.validation_score`): what the benchmark judges. The
+held-out starts never choose: judging a model on the starts that chose it would flatter
+it.
 
 SB3's ``EvalCallback`` does the running, on an env of its own (index ``n_envs``, its own
 run directory). Added here: the validation starts, the record, a last validation of the
@@ -206,10 +207,16 @@ def eval_callback(
     )
     try:
         previous = json.loads((out / "eval" / "best.json").read_text())
-        callback.best_mean_reward = float(previous["mean_return"])
-    except (OSError, ValueError, KeyError):
-        pass
-    _keep_evaluations(callback, out / "eval" / "evaluations.npz")
+    except (OSError, ValueError):
+        previous = {}
+    # a run resumed by a gymprecice that scores otherwise starts its validations afresh:
+    # a return and a fraction of a floor do not compare
+    if previous.get("score", score_name(None)) == score_name(reference):
+        try:
+            callback.best_mean_reward = float(previous["mean_return"])
+        except (KeyError, TypeError, ValueError):
+            pass
+        _keep_evaluations(callback, out / "eval" / "evaluations.npz")
     return callback
 
 
