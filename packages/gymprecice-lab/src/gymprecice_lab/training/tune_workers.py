@@ -8,10 +8,12 @@ workers share nothing but the storage, so they can run anywhere that reaches it:
 * **here** (``--n-jobs N``): N processes, each ended with its parent;
 * **on a Ray cluster** (``--ray auto|ADDRESS``): each worker is a Ray task that asks for
   ``--n-envs`` CPUs on one node and runs the worker command there, so a cluster runs as
-  many trials at once as it has room for. The study must be in a storage every node
-  reaches (``--storage postgresql://...``, or the default SQLite file where the nodes
-  share the output directory), and each trial's run directory is written on the node
-  that trains it, at the same path. The report (``best_hyperparams.yml``, ``tune.json``,
+  many trials at once as it has room for. Each worker runs in the search's directory,
+  which the nodes must share (a shared home or file system: the command's relative
+  paths, ``--hyperparams`` and ``--out``, mean the same there); the study must be in a
+  storage every node reaches (``--storage postgresql://...``, or the default SQLite file
+  in that shared directory). A trial's run directory is written by the node that
+  trains it. The report (``best_hyperparams.yml``, ``tune.json``,
   the figures) is written here from the study once every worker is done.
 """
 
@@ -76,7 +78,7 @@ def run_workers_here(commands: list[list[str]]) -> None:
 
 def run_workers_on_ray(commands: list[list[str]], address: str, cpus: float) -> list[str]:
     """Each worker a Ray task of ``cpus`` CPUs at ``address``; one line per worker (its
-    node and exit status) once all are done. Ray is initialised here and shut down."""
+    node and exit status, or that the node lacks this directory) once all are done. Ray is initialised here and shut down."""
     import ray
 
     if not ray.is_initialized():
@@ -89,17 +91,21 @@ def run_workers_on_ray(commands: list[list[str]], address: str, cpus: float) -> 
     finally:
         ray.shutdown()
     return [
-        f"worker {k}: Ray node {node[:12]}, exit status {status}"
+        f"worker {k}: Ray node {node[:12]}, "
+        + (f"exit status {status}" if status is not None else f"not run: {cwd} is not there")
         for k, (node, status) in enumerate(done)
     ]
 
 
-def _run_worker(cmd: list[str], index: int, cwd: str) -> tuple[str, int]:
+def _run_worker(cmd: list[str], index: int, cwd: str) -> tuple[str, int | None]:
     """A worker on a Ray node: the command, in the search's directory, with its index and
-    its node's id (a Ray task: module level, so it pickles by reference)."""
+    its node's id; ``None`` for a node that lacks the directory (a Ray task: module level,
+    so it pickles by reference)."""
     import ray
 
     node = ray.get_runtime_context().get_node_id()
+    if not os.path.isdir(cwd):  # the nodes must share the search's directory
+        return node, None
     env = {**os.environ, WORKER_VARIABLE: str(index), NODE_VARIABLE: node}
     status = subprocess.run(cmd, cwd=cwd, env=env, preexec_fn=die_with_parent).returncode
     return node, status
