@@ -78,7 +78,8 @@ def run_workers_here(commands: list[list[str]]) -> None:
 
 def run_workers_on_ray(commands: list[list[str]], address: str, cpus: float) -> list[str]:
     """Each worker a Ray task of ``cpus`` CPUs at ``address``; one line per worker (its
-    node and exit status, or that the node lacks this directory) once all are done. Ray is initialised here and shut down."""
+    node and exit status, or that the node lacks this directory) once all are done. Ray
+    is initialised here and shut down."""
     import ray
 
     if not ray.is_initialized():
