@@ -14,13 +14,9 @@ import numpy as np
 import pytest
 
 from gymprecice.card import EnvCard, Reference
+from gymprecice_lab.common.settled_score import UNSETTLED_SCORE, SettledFloorScore
 from gymprecice_lab.rollouts.records import floor_metrics
-from gymprecice_lab.training.validation_score import (
-    UNSETTLED_SCORE,
-    SettledFloorScore,
-    settled_reference,
-    validation_episode_time,
-)
+from gymprecice_lab.training.validation_score import settled_reference, validation_episode_time
 
 FLOOR = Reference(metric="Cd", uncontrolled=3.0, floor=2.0, settle_time=0.5, label="drag floor")
 

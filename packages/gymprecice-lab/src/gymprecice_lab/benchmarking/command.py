@@ -67,7 +67,7 @@ from gymprecice_lab.benchmarking.checks import (
     resolve_feedback,
 )
 from gymprecice_lab.benchmarking.command_settings import BenchmarkSettings
-from gymprecice_lab.benchmarking.dispatch import check_ray, run_everywhere, solver_cpus, sweep_cpus
+from gymprecice_lab.benchmarking.dispatch import run_everywhere, solver_cpus, sweep_cpus
 from gymprecice_lab.benchmarking.remote_commands import RemoteCommand
 from gymprecice_lab.benchmarking.scores import controller_entry, start_scores
 from gymprecice_lab.benchmarking.seed_training import (
@@ -81,6 +81,7 @@ from gymprecice_lab.benchmarking.tables import write_tables
 from gymprecice_lab.cli.settings import from_argv
 from gymprecice_lab.common.command_runs import evaluated, run_in_pool
 from gymprecice_lab.common.constructor_kwargs import build_env_kwargs
+from gymprecice_lab.common.ray_cluster import check_ray
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError
 from gymprecice_lab.common.starts import describe_starts
 from gymprecice_lab.training.hyperparams import hyperparameters

@@ -4,20 +4,19 @@ With ``--ray`` each evaluation and the baselines' sweep is a Ray task on any nod
 inputs shipped and its output brought back (:mod:`gymprecice_lab.benchmarking.remote_commands`);
 without it they run in processes here, ``--workers`` at once. A cluster that is missing,
 unreachable or without a node of the CPUs one piece needs is refused before anything
-trains, so the CPUs of one env's solvers are measured here too.
+trains (:func:`gymprecice_lab.common.ray_cluster.check_ray`), so the CPUs of one env's
+solvers are measured here too.
 """
 
 from __future__ import annotations
-
-from collections.abc import Sequence
 
 import gymnasium as gym
 
 from gymprecice_lab.benchmarking.checks import BenchmarkError
 from gymprecice_lab.benchmarking.remote_commands import RemoteCommand
-from gymprecice_lab.common.command_runs import CommandFailed, run_commands
+from gymprecice_lab.common.command_runs import run_commands
 
-__all__ = ["check_ray", "run_everywhere", "solver_cpus", "sweep_cpus"]
+__all__ = ["run_everywhere", "solver_cpus", "sweep_cpus"]
 
 
 def solver_cpus(env: gym.Env) -> float:
@@ -53,45 +52,3 @@ def run_everywhere(
 
 def _input_options(command: RemoteCommand) -> list[str]:
     return [item for option, path in command.inputs.items() for item in (option, str(path))]
-
-
-def check_ray(address: str, needs: Sequence[tuple[str, float]], command: str = "benchmark") -> None:
-    """Refuse ``--ray`` before anything trains when Ray is missing, no cluster answers, or
-    no node has the CPUs one of ``needs`` (what, CPUs on one node) asks for: one line
-    ``gymprecice COMMAND: ...`` and exit status 2 (:class:`CommandFailed`)."""
-    try:
-        import ray
-    except ImportError:
-        raise CommandFailed(
-            command,
-            "--ray needs Ray on this machine and every node: pip install "
-            "'gymprecice-core[ray]' (see docs/cluster.md)",
-        ) from None
-    host, _, port = address.rpartition(":")
-    try:
-        if host and port.isdigit():  # a head's address: ray.init would retry it for minutes
-            import socket
-
-            socket.create_connection((host, int(port)), timeout=5).close()
-        ray.init(address=address, log_to_driver=False)
-    except (OSError, RuntimeError, ValueError) as exc:  # ConnectionError is an OSError
-        raise CommandFailed(
-            command,
-            f"--ray {address}: no Ray cluster answers there "
-            f"({getattr(exc, 'strerror', None) or exc}); start one (ray start --head, see "
-            "docs/cluster.md) or pass its head's address",
-        ) from None
-    else:
-        from gymprecice_lab.benchmarking.remote_commands import (
-            RemoteCommandError,
-            check_fits,
-            largest_node_cpus,
-        )
-
-        try:
-            check_fits(needs, largest_node_cpus())
-        except RemoteCommandError as exc:
-            raise CommandFailed(command, f"--ray {address}: {exc}") from None
-    finally:
-        if ray.is_initialized():
-            ray.shutdown()

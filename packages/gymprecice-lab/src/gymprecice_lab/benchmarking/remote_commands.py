@@ -39,6 +39,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gymprecice_lab.common.ray_cluster import largest_node_cpus, too_large
+
 #: where a task works on its node when the driver's environment does not say
 NODE_DIR_ENV = "GYMPRECICE_NODE_DIR"
 #: the driver's variables that reach the command (as for the Ray backend's envs)
@@ -225,25 +227,12 @@ def _kill_solvers_left(work: Path) -> None:
 # -- on the driver --------------------------------------------------------------------------
 
 
-def largest_node_cpus() -> float:
-    """CPUs of the alive node with the most (Ray must be initialised)."""
-    import ray
-
-    return max(
-        (float(n.get("Resources", {}).get("CPU", 0)) for n in ray.nodes() if n.get("Alive")),
-        default=0.0,
-    )
-
-
 def check_fits(needs: Sequence[tuple[str, float]], cpus: float) -> None:
     """Refuse any of ``needs`` (what, CPUs on one node) that no node of ``cpus`` CPUs can
     run (Ray would queue it for ever)."""
-    for what, wanted in needs:
-        if wanted > cpus:
-            raise RemoteCommandError(
-                f"{what} needs {wanted:g} CPUs on one node, but the cluster's largest node "
-                f"has {cpus:g}; add a larger node, or lower --workers"
-            )
+    reason = too_large(needs, cpus)
+    if reason:
+        raise RemoteCommandError(reason)
 
 
 def _input_archive(option: str, path: Path) -> tuple[str, bool, bytes]:

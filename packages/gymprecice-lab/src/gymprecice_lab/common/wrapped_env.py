@@ -151,7 +151,7 @@ def make_env(
     (:class:`gymprecice_lab.common.starts.ValidationStarts`: the envs that choose the model a
     training run keeps); ``score`` makes each episode's return the fraction of that
     reference's floor it reaches once settled
-    (:class:`gymprecice_lab.training.validation_score.SettledFloorScore`).
+    (:class:`gymprecice_lab.common.settled_score.SettledFloorScore`).
     """
     import gymprecice  # noqa: F401  (registers the gymprecice/... ids in this process)
 
@@ -165,7 +165,7 @@ def make_env(
 
         env = ValidationStarts(env, *validation)
     if score is not None:  # inside the Monitor, whose returns SB3's evaluation reads
-        from gymprecice_lab.training.validation_score import SettledFloorScore
+        from gymprecice_lab.common.settled_score import SettledFloorScore
 
         env = SettledFloorScore(env, score)
     keywords = episode_keywords(env_id)

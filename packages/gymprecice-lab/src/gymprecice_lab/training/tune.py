@@ -414,7 +414,7 @@ def _tune(settings: TuneSettings) -> int:
 def _check_ray(address: str, cpus: int) -> None:
     """Refuse ``--ray`` before anything is written when Ray is missing, no cluster
     answers, or no node has the CPUs of one trial (one line, exit status 2)."""
-    from gymprecice_lab.benchmarking.dispatch import check_ray
+    from gymprecice_lab.common.ray_cluster import check_ray
 
     check_ray(address, [("a trial (--n-envs)", float(cpus))], "tune")
 
