@@ -148,7 +148,7 @@ def plot_objective_per_start(
     ax.set_xlabel(kind)
     ax.set_ylabel(objective_label)
     title = f"Objective per {kind.split(' (')[0]} (dots: training seeds)"
-    ax.set_title(f"{textwrap.fill(description, 80)}\n{title}" if description else title)
+    ax.set_title(f"{textwrap.fill(description, 64)}\n{title}" if description else title)
     ax.legend(fontsize="small")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
