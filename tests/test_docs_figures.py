@@ -129,7 +129,8 @@ def test_the_readmes_results_table_is_the_one_the_result_files_give() -> None:
     spec.loader.exec_module(module)
     assert module.main(["--check"]) == 0
     text = (ROOT / "README.md").read_text()
-    tampered = text.replace("| SAC 88.9 %", "| SAC 98.9 %", 1)
+    row = next(line for line in text.splitlines() if line.startswith("| jet cylinder"))
+    tampered = text.replace(row, row.replace(" %", "0 %", 1), 1)  # one figure edited
     assert tampered != text
     assert module.with_table(tampered, macros.results_table()) == text
 
