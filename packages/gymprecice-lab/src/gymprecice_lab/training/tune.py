@@ -44,6 +44,7 @@ from gymprecice_lab.training.command_settings import TuneSettings
 from gymprecice_lab.training.tune_spaces import SPACES, sample, space_names
 from gymprecice_lab.training.tune_workers import (
     NODE_VARIABLE,
+    SHARE_VARIABLE,
     WORKER_VARIABLE,
     die_with_parent,
     run_workers_here,
@@ -386,6 +387,7 @@ def _tune(settings: TuneSettings) -> int:
     done = _counted(study)
     todo = max(0, settings.trials - done)
     if WORKER_VARIABLE in os.environ:  # an --n-jobs worker: its parent speaks and reports
+        todo = min(todo, int(os.environ.get(SHARE_VARIABLE, todo)))
         if todo:
             _optimize(study, settings, env, out, todo)
         return 0

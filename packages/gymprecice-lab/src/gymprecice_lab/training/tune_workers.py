@@ -25,10 +25,18 @@ import subprocess
 import sys
 from collections.abc import Sequence
 
-__all__ = ["NODE_VARIABLE", "WORKER_VARIABLE", "run_workers_here", "run_workers_on_ray"]
+__all__ = [
+    "NODE_VARIABLE",
+    "SHARE_VARIABLE",
+    "WORKER_VARIABLE",
+    "run_workers_here",
+    "run_workers_on_ray",
+]
 
 #: the environment variable that tells a worker its index (0, 1, ...)
 WORKER_VARIABLE = "GYMPRECICE_TUNE_WORKER"
+#: the environment variable that tells a worker how many trials are its share
+SHARE_VARIABLE = "GYMPRECICE_TUNE_SHARE"
 #: the environment variable that tells a worker on Ray the id of its node (recorded with
 #: each of its trials as the user attribute ``ray_node``)
 NODE_VARIABLE = "GYMPRECICE_TUNE_NODE"
@@ -36,47 +44,56 @@ NODE_VARIABLE = "GYMPRECICE_TUNE_NODE"
 
 def worker_commands(
     argv: Sequence[str], trials: int, n_jobs: int, storage: str, name: str, todo: int
-) -> list[list[str]]:
-    """The command of each worker that has trials to run: the search's ``argv`` (without
-    ``gymprecice``) with one job, the study's storage and name, and no progress bar."""
+) -> list[tuple[list[str], int]]:
+    """The command of each worker that has trials to run, with its share of the ``todo``
+    trials: the search's ``argv`` (without ``gymprecice``) with one job, the study's
+    storage and name, and no progress bar. The shares add up to ``todo``, so the workers
+    together run that many trials, not one more each."""
     commands = []
     for k in range(n_jobs):
         share = todo // n_jobs + (1 if k < todo % n_jobs else 0)
         if not share:
             continue
         commands.append(
-            [
-                sys.executable,
-                "-m",
-                "gymprecice",
-                *_without(argv, ("--n-jobs", "--trials", "--storage", "--ray")),
-                "--n-jobs",
-                "1",
-                "--trials",
-                str(trials),
-                "--storage",
-                storage,
-                "--study-name",
-                name,
-                "--no-progress-bar",
-            ]
+            (
+                [
+                    sys.executable,
+                    "-m",
+                    "gymprecice",
+                    *_without(argv, ("--n-jobs", "--trials", "--storage", "--ray")),
+                    "--n-jobs",
+                    "1",
+                    "--trials",
+                    str(trials),
+                    "--storage",
+                    storage,
+                    "--study-name",
+                    name,
+                    "--no-progress-bar",
+                ],
+                share,
+            )
         )
     return commands
 
 
-def run_workers_here(commands: list[list[str]]) -> None:
+def run_workers_here(commands: list[tuple[list[str], int]]) -> None:
     """Each worker a process here, ended with this one; returns when all are done."""
     workers = [
         subprocess.Popen(
-            cmd, preexec_fn=die_with_parent, env={**os.environ, WORKER_VARIABLE: str(k)}
+            cmd,
+            preexec_fn=die_with_parent,
+            env={**os.environ, WORKER_VARIABLE: str(k), SHARE_VARIABLE: str(share)},
         )
-        for k, cmd in enumerate(commands)
+        for k, (cmd, share) in enumerate(commands)
     ]
     for worker in workers:
         worker.wait()
 
 
-def run_workers_on_ray(commands: list[list[str]], address: str, cpus: float) -> list[str]:
+def run_workers_on_ray(
+    commands: list[tuple[list[str], int]], address: str, cpus: float
+) -> list[str]:
     """Each worker a Ray task of ``cpus`` CPUs at ``address``; one line per worker (its
     node and exit status, or that the node lacks this directory) once all are done. Ray
     is initialised here and shut down."""
@@ -87,7 +104,7 @@ def run_workers_on_ray(commands: list[list[str]], address: str, cpus: float) -> 
     try:
         task = ray.remote(num_cpus=cpus, max_retries=0)(_run_worker)
         cwd = os.getcwd()
-        refs = [task.remote(cmd, k, cwd) for k, cmd in enumerate(commands)]
+        refs = [task.remote(cmd, k, share, cwd) for k, (cmd, share) in enumerate(commands)]
         done = ray.get(refs)
     finally:
         ray.shutdown()
@@ -98,7 +115,7 @@ def run_workers_on_ray(commands: list[list[str]], address: str, cpus: float) -> 
     ]
 
 
-def _run_worker(cmd: list[str], index: int, cwd: str) -> tuple[str, int | None]:
+def _run_worker(cmd: list[str], index: int, share: int, cwd: str) -> tuple[str, int | None]:
     """A worker on a Ray node: the command, in the search's directory, with its index and
     its node's id; ``None`` for a node that lacks the directory (a Ray task: module level,
     so it pickles by reference)."""
@@ -107,7 +124,12 @@ def _run_worker(cmd: list[str], index: int, cwd: str) -> tuple[str, int | None]:
     node = ray.get_runtime_context().get_node_id()
     if not os.path.isdir(cwd):  # the nodes must share the search's directory
         return node, None
-    env = {**os.environ, WORKER_VARIABLE: str(index), NODE_VARIABLE: node}
+    env = {
+        **os.environ,
+        WORKER_VARIABLE: str(index),
+        SHARE_VARIABLE: str(share),
+        NODE_VARIABLE: node,
+    }
     status = subprocess.run(cmd, cwd=cwd, env=env, preexec_fn=die_with_parent).returncode
     return node, status
 
