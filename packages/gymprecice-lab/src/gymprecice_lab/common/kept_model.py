@@ -21,6 +21,7 @@ __all__ = [
     "KEPT_MODEL",
     "KEPT_RECORD",
     "MODEL_CHOICES",
+    "RETURN_SCORE",
     "choose_model",
     "kept_summary",
     "read_kept",
@@ -32,6 +33,9 @@ MODEL_CHOICES = (KEPT, FINAL)
 #: the kept model and its record, in a training run's directory
 KEPT_MODEL = Path("best_model.zip")
 KEPT_RECORD = Path("eval") / "best.json"
+#: the kept model's score where its record names none (runs made before it did), and
+#: the score of an env without a physical reference
+RETURN_SCORE = "mean validation return"
 
 
 def read_kept(run: Path) -> dict[str, Any] | None:
@@ -51,7 +55,7 @@ def kept_summary(record: Mapping[str, Any]) -> str:
     clock = "" if seconds is None else f", {clock_text(float(seconds))} after the command was typed"
     starts = record.get("starts") or []
     on = f"{len(starts)} validation start(s)" if starts else "validation"
-    score = str(record.get("score") or "mean validation return").replace("validation ", "")
+    score = str(record.get("score") or RETURN_SCORE).replace("validation ", "")
     return (
         f"best on {on} ({score} {float(record['mean_return']):.4g}) at step "
         f"{int(record['timesteps']):,}{clock}"

@@ -39,6 +39,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from gymprecice_lab.common.kept_model import RETURN_SCORE
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError
 from gymprecice_lab.training.command_settings import TuneSettings
 from gymprecice_lab.training.tune_spaces import SPACES, sample, space_names
@@ -168,7 +169,7 @@ def _alive(pid: Any, started: Any) -> bool:
 
 def _score(trial: Any) -> str:
     """What a finished trial's value is (its kept model's record says)."""
-    return str(trial.user_attrs.get("score") or "mean validation return")
+    return str(trial.user_attrs.get("score") or RETURN_SCORE)
 
 
 # -- one trial -------------------------------------------------------------------------------
@@ -210,7 +211,7 @@ def objective(trial: Any, settings: TuneSettings, env: LabEnv, out: Path) -> flo
         print(f"gymprecice tune: trial {trial.number} pruned: {reason}", file=sys.stderr)
         raise optuna.TrialPruned(reason)
     trial.set_user_attr("kept_step", kept["timesteps"])
-    trial.set_user_attr("score", kept.get("score", "mean validation return"))
+    trial.set_user_attr("score", kept.get("score", RETURN_SCORE))
     return float(kept["mean_return"])
 
 

@@ -22,6 +22,7 @@ model best on that, unchanged.
 from __future__ import annotations
 
 from gymprecice.card import EnvCard, Reference
+from gymprecice_lab.common.kept_model import RETURN_SCORE
 
 __all__ = ["score_name", "settled_reference", "validation_episode_time"]
 
@@ -43,5 +44,5 @@ def validation_episode_time(reference: Reference, episode_time: float) -> float:
 def score_name(reference: Reference | None) -> str:
     """How the kept model's record names its score."""
     if reference is None:
-        return "mean validation return"
+        return RETURN_SCORE
     return f"settled fraction of the {reference.label}"
