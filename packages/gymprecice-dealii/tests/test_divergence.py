@@ -72,6 +72,13 @@ def test_a_solver_that_gave_up_converging_diverged(pm, tmp_path):
     assert _detect(pm, solver, log, None) is None  # running: the watch reads displacements
 
 
+def test_a_nonlinear_solver_whose_newton_iterations_gave_up_diverged(pm, tmp_path):
+    """The neo-Hookean solver (FSI3's bar) aborts so when a time step loads it too hard."""
+    solver = _solver(tmp_path, _row(0.0, 0.0, 0.0))
+    log = "Additional information: \n    No convergence in nonlinear solver!\nAborting!\n"
+    assert "No convergence in nonlinear solver" in _detect(pm, solver, log, 134)
+
+
 @pytest.mark.parametrize("value", [0, -1.0, "big", math.inf])
 def test_a_displacement_limit_that_is_not_positive_is_refused(pm, tmp_path, value):
     solver = _solver(tmp_path, _row(0.0, 0.0, 0.0), max_displacement=value)

@@ -10,7 +10,9 @@ per time window), so it can be watched while the solver runs:
 * with the solver option ``max_displacement`` (a positive length), so is a displacement
   whose magnitude passes it;
 * a solver that died with ``Iterative method reported convergence failure`` (deal.II's
-  ``SolverControl::NoConvergence``) diverged.
+  ``SolverControl::NoConvergence``), or whose Newton iterations gave up (the neo-Hookean
+  solver's ``No convergence in nonlinear solver!``, e.g. a bar loaded too hard in one
+  time step), diverged.
 
 Anything else stays a fault.
 """
@@ -33,6 +35,7 @@ DISPLACEMENT_OPTION = "max_displacement"
 _EXIT_PATTERNS = (
     re.compile(r"Iterative method reported convergence failure"),
     re.compile(r"NoConvergence"),
+    re.compile(r"No convergence in nonlinear solver"),
 )
 
 

@@ -52,6 +52,7 @@ __all__ = [
     "ProbesReader",
     "Rows",
     "TableReader",
+    "last_per_time",
     "read_force_coeffs",
     "time_dirs",
 ]
@@ -585,6 +586,19 @@ class ForceCoeffsReader(TableReader):
             start_time=start_time,
             time_tolerance=time_tolerance,
         )
+
+
+def last_per_time(rows: Rows) -> Rows:
+    """``rows`` with one row per time: the last one written at it.
+
+    Under preCICE's implicit coupling the fluid computes a time window once per coupling
+    iteration, and its function objects write a row each time: the same time several
+    times in a row, the converged one last. This keeps that one.
+    """
+    if len(rows) < 2:
+        return rows
+    keep = np.append(rows.time[1:] != rows.time[:-1], True)
+    return Rows(rows.time[keep], rows.values[keep], rows.columns, rows.locations)
 
 
 def read_force_coeffs(case_dir: str | os.PathLike[str], name: str = "forceCoeffs") -> Rows:

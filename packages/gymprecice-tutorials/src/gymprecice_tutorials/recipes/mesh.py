@@ -16,7 +16,7 @@ from gymprecice_tutorials.recipes.foam_format import FOOTER, foam_header, foam_n
 from gymprecice_tutorials.recipes.spec import Geometry, Resolution
 
 
-def _geometric_ratio(n: int, length: float, last: float) -> float:
+def geometric_ratio(n: int, length: float, last: float) -> float:
     """Expansion ratio (last/first) of ``n`` geometric cells over ``length`` ending in ``last``.
 
     The cells are ``last * q**-k`` (k = 0 .. n-1, from the far end); their sum decreases
@@ -38,7 +38,7 @@ def _geometric_ratio(n: int, length: float, last: float) -> float:
     return math.sqrt(lo * hi) ** (n - 1)
 
 
-def _count_for_grading(length: float, first: float, ratio: float) -> int:
+def count_for_grading(length: float, first: float, ratio: float) -> int:
     """Number of geometric cells over ``length`` from ``first`` growing to ``ratio * first``."""
     if abs(ratio - 1.0) < 1e-9:
         return max(1, round(length / first))
@@ -106,8 +106,8 @@ def block_counts(geometry: Geometry, resolution: Resolution) -> BlockCounts:
     else:
         growth = (extent - first) / (extent - h_box)
         n_radial = max(2, round(1 + math.log(h_box / first) / math.log(growth)))
-    radial_grading = _geometric_ratio(n_radial, extent, h_box)
-    n_wake = _count_for_grading(geometry.length - cx - s, h_box, resolution.wake_grading)
+    radial_grading = geometric_ratio(n_radial, extent, h_box)
+    n_wake = count_for_grading(geometry.length - cx - s, h_box, resolution.wake_grading)
     return BlockCounts(
         n_jet=n_jet,
         n_arc=n_arc,

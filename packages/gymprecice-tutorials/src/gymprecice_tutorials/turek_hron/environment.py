@@ -1,0 +1,163 @@
+"""The FSI3 environment: two jets on the cylinder against the bar's swing.
+
+Task: Turek and Hron's FSI3 (:mod:`gymprecice_tutorials.turek_hron`). The flow past the
+cylinder sheds vortices and the elastic bar behind it swings; the controller blows and
+sucks through two jets on the cylinder (at 90° and 270°, as on the jet cylinder) to
+damp the swing.
+
+* **Action** ``(1,)``: the jets' flow rate ``Q`` (m³/s over the mesh's depth), within
+  ``±max_flow_rate``; jet 1 blows ``Q`` and jet 2 sucks it, so no net mass enters.
+  The default bound is 6 % of the mean inflow's rate, as Rabault et al. bound theirs.
+* **Observation** ``(2,)``: the bar tip's displacement ``(dx, dy)`` (m) at the step's
+  end, from the solid's preCICE watch point ``Flap-Tip`` (point A of the benchmark).
+* **Reward**: ``-mean |dy|`` over the time windows of the step (m).
+* **Episode end**: truncated at the coupling's max-time (``end_time``); no terminal
+  state. Every episode starts from the fluid at rest, under the benchmark's ramped
+  inflow: the deal.II solid cannot start from a saved state.
+
+``info["metrics"]`` holds the tip's displacement and the drag and lift on the cylinder,
+its jets and the bar (N per metre of depth, the benchmark's forces), the means over
+the step. Uncontrolled, the run is the benchmark's: :mod:`.validate` compares it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from gymprecice.core import Adapter
+from gymprecice.fields import Overlay
+from gymprecice_openfoam import actuators
+from gymprecice_openfoam.outputs import last_per_time
+from gymprecice_tutorials.case_files import write_case_files
+from gymprecice_tutorials.turek_hron.case import INFLOW_MEAN, case_files
+from gymprecice_tutorials.turek_hron.mesh import GEOMETRY
+
+__all__ = ["MAX_FLOW_RATE", "TurekHronEnv"]
+
+#: 6 % of the mean inflow's rate through the channel, over the mesh's depth (m³/s)
+MAX_FLOW_RATE = 0.06 * INFLOW_MEAN * GEOMETRY.height * GEOMETRY.depth
+
+
+class TurekHronEnv(Adapter):
+    """Jets on the cylinder against the bar's swing (see the module docstring)."""
+
+    SOLID = "solid"
+    FLUID = "fluid"
+    WATCH_POINT = "Flap-Tip"
+    JETS = (("jet1", 90.0, 1.0), ("jet2", 270.0, -1.0))
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 25}
+
+    def __init__(
+        self,
+        options: Mapping[str, Any] | str | Path | None = None,
+        idx: int = 0,
+        *,
+        resolution: str = "coarse",
+        time_step: float = 1e-3,
+        end_time: float = 8.0,
+        degree: int = 2,
+        action_time: float = 0.02,
+        max_flow_rate: float = MAX_FLOW_RATE,
+        watch_timeout: float = 300.0,
+        run_root: str | Path | None = None,
+        **kwargs: Any,
+    ) -> None:
+        if options is None:
+            files = case_files(resolution, time_step, end_time, degree, action_time)
+            name = f"turek-hron-fsi3-{resolution}"
+            options = write_case_files(name, files, run_root)
+        super().__init__(options, idx, run_root=run_root, **kwargs)
+        if not max_flow_rate > 0:
+            raise ValueError(f"max_flow_rate must be positive, got {max_flow_rate}")
+        self.max_flow_rate = float(max_flow_rate)
+        self.watch_timeout = float(watch_timeout)
+        bound = np.float32(self.max_flow_rate)
+        self.action_space = gym.spaces.Box(-bound, bound, shape=(1,), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(2,), dtype=np.float32)
+        self._tip: Any = None
+        self._forces: Any = None
+        self._step_rows = np.zeros((0, 0))
+
+    @property
+    def render_fields(self) -> dict[str, tuple[str, ...]]:  # type: ignore[override]
+        """The fluid's speed and the bar's displacement, drawn on the bent bar."""
+        return {self.FLUID: ("U",), self.SOLID: ("displacement",)}
+
+    def _render_overlay(self) -> Overlay:
+        q = self.flow_rate(self.last_action)
+        return Overlay(text=[f"jet flow rate {q:+.2e} m³/s"])
+
+    # -- the four user methods -------------------------------------------------------------
+    def _get_action(self, action: Any, write_var_list: list) -> dict:
+        q = self.flow_rate(action)
+        centre = (*GEOMETRY.centre, 0.0)
+        width = math.radians(GEOMETRY.jet_width)
+        return {
+            name: actuators.jet_velocity(
+                self.interface_geometry[name],
+                sign * q,
+                centre=centre,
+                width=width,
+                jet_angle=math.radians(angle),
+                direction="radial",
+            )
+            for name, angle, sign in self.JETS
+        }
+
+    def _get_observation(self, read_data: Any, read_var_list: list) -> np.ndarray:
+        if self._tip is None:  # core closes readers at every reset: open one per episode
+            self._tip = self.open_output(self.SOLID, "watchpoint", point=self.WATCH_POINT)
+        self._step_rows = self._tip.wait_until(self.time, self.watch_timeout)
+        displacement = self._tip.field("Displacement", self._tip.data[-1:])[0]
+        return np.asarray(displacement, dtype=np.float32)
+
+    def _get_reward(self) -> float:
+        rows = self._step_rows if len(self._step_rows) else self._tip.data[-1:]
+        return -float(np.mean(np.abs(self._tip.field("Displacement", rows)[:, 1])))
+
+    def _close_external_resources(self) -> None:
+        self._tip = None
+        self._forces = None
+        self._step_rows = np.zeros((0, 0))
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Core's step, plus the tip's displacement and the forces in ``info["metrics"]``."""
+        obs, reward, terminated, truncated, info = super().step(action)
+        drag, lift = self.forces()
+        info["action"] = [self.flow_rate(action)]
+        info["metrics"] = {
+            "tip_dx": float(obs[0]),
+            "tip_dy": float(obs[1]),
+            "mean_abs_tip_dy": -float(reward),
+            "drag": drag,
+            "lift": lift,
+        }
+        return obs, reward, terminated, truncated, info
+
+    # -- helpers ---------------------------------------------------------------------------
+    def forces(self) -> tuple[float, float]:
+        """Drag and lift (N per metre of depth) on the cylinder, its jets and the bar,
+        the means over the time windows of the step that just ended."""
+        if self._forces is None:
+            self._forces = self.open_output(self.FLUID, "forces", type="forces")
+        # implicit coupling writes a row per coupling iteration: the converged one is last
+        rows = last_per_time(self._forces.wait_until(self.time, self.watch_timeout))
+        if not len(rows):
+            return math.nan, math.nan
+        drag = float(np.mean(rows.column("total_x"))) / GEOMETRY.depth
+        lift = float(np.mean(rows.column("total_y"))) / GEOMETRY.depth
+        return drag, lift
+
+    def _initial_action(self) -> np.ndarray:
+        return np.zeros(1, dtype=np.float32)
+
+    def flow_rate(self, action: Any) -> float:
+        """The jets' flow rate an action asks for, clipped to the action space."""
+        value = float(np.asarray(action, dtype=float).reshape(-1)[0])
+        return float(np.clip(value, -self.max_flow_rate, self.max_flow_rate))

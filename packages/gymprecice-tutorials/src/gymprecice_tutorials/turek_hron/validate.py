@@ -1,0 +1,241 @@
+"""Validation of the FSI3 case against Turek and Hron's published values.
+
+Runs :class:`~.environment.TurekHronEnv` uncontrolled (the jets shut) from rest under
+the benchmark's ramped inflow, records the bar tip's displacement and the drag and
+lift at every time window, and compares the periodic state of the last ``--window``
+seconds with :data:`~.reference.PUBLISHED`, each figure within its stated tolerance::
+
+    python -m gymprecice_tutorials.turek_hron.validate [--resolution coarse|medium|fine]
+        [--time-step S] [--end-time S] [--degree P] [--window S] [--smoke]
+        [--out DIR] [--json FILE] [--figure PNG]
+
+``--smoke`` runs 0.1 s and checks that the coupled run goes through with every
+output in place, comparing nothing (CI). Exits 1 when a figure misses its tolerance
+(or the smoke run's outputs do not add up), 2 on bad input. Needs the real stack
+(OpenFOAM, preCICE and the deal.II adapter).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time as clock
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gymprecice_openfoam.outputs import last_per_time
+from gymprecice_tutorials.turek_hron.mesh import RESOLUTIONS, cell_count
+from gymprecice_tutorials.turek_hron.reference import PUBLISHED, oscillation
+
+__all__ = ["Series", "compare", "main", "run_uncontrolled"]
+
+#: simulated seconds of the full run, and the periodic state's window at its end
+FULL_END = 8.0
+WINDOW = 1.0
+SMOKE_END = 0.1
+SIGNALS = ("tip_dx", "tip_dy", "drag", "lift")
+
+
+#: a run's time series by name: ``time``, then each of :data:`SIGNALS`
+Series = dict[str, np.ndarray]
+
+
+def run_uncontrolled(
+    resolution: str,
+    time_step: float,
+    end_time: float,
+    degree: int,
+    run_root: Path,
+) -> tuple[Series, float]:
+    """The uncontrolled run's series at every time window, and its wall-clock (s)."""
+    from gymprecice_tutorials.turek_hron.environment import TurekHronEnv
+    from gymprecice_tutorials.turek_hron.mesh import GEOMETRY
+
+    started = clock.monotonic()
+    env = TurekHronEnv(
+        resolution=resolution,
+        time_step=time_step,
+        end_time=end_time,
+        degree=degree,
+        run_root=run_root,
+    )
+    try:
+        env.reset(seed=0)
+        shut = np.zeros(1, dtype=np.float32)
+        while True:
+            *_, terminated, truncated, _ = env.step(shut)
+            if terminated or truncated:
+                break
+        tip = env.open_output(env.SOLID, "watchpoint", point=env.WATCH_POINT)
+        tip.read_new()
+        forces = last_per_time(env.open_output(env.FLUID, "forces", type="forces").read_all())
+    finally:
+        env.close()
+    displacement = tip.field("Displacement")
+    series: Series = {"time": np.asarray(tip.field("Time"))}
+    series["tip_dx"], series["tip_dy"] = displacement[:, 0], displacement[:, 1]
+    # the fluid's converged row of each window, at the solid's times
+    force_time = np.asarray(forces.time)
+    for name, column in (("drag", "total_x"), ("lift", "total_y")):
+        values = np.asarray(forces.column(column)) / GEOMETRY.depth
+        series[name] = np.interp(series["time"], force_time, values)
+    return series, clock.monotonic() - started
+
+
+def compare(series: Series, window: float) -> dict[str, dict[str, Any]]:
+    """Each published figure: the run's, the published one, the error, the tolerance
+    and whether the run is within it."""
+    table: dict[str, dict[str, Any]] = {}
+    for signal in SIGNALS:
+        measured = oscillation(series["time"], series[signal], window)
+        for part in ("mean", "amplitude", "frequency"):
+            figure = PUBLISHED[f"{signal}_{part}"]
+            value = float(getattr(measured, part))
+            table[f"{signal}_{part}"] = {
+                "run": value,
+                "published": figure.value,
+                "error": figure.error(value) if np.isfinite(value) else None,
+                "tolerance": figure.tolerance,
+                "kind": figure.kind,
+                "within": figure.passes(value),
+            }
+    return table
+
+
+_UNITS = {"tip_dx": "mm", "tip_dy": "mm", "drag": "N/m", "lift": "N/m"}
+
+
+def _table(figures: dict[str, dict[str, Any]]) -> str:
+    lines = ["| figure | published | this run | error | tolerance |", "| --- |" + " --- |" * 4]
+    for name, row in figures.items():
+        signal, part = name.rsplit("_", 1)
+        unit = "Hz" if part == "frequency" else _UNITS[signal]
+        scale = 1e3 if unit == "mm" else 1.0
+        if row["kind"] == "relative":
+            error = "n/a" if row["error"] is None else f"{100 * row['error']:.1f} %"
+            tolerance = f"{100 * row['tolerance']:g} %"
+        else:
+            error = "n/a" if row["error"] is None else f"{scale * row['error']:.2f} {unit}"
+            tolerance = f"{scale * row['tolerance']:g} {unit}"
+        mark = "" if row["within"] else " (out)"
+        lines.append(
+            f"| {signal} {part} ({unit}) | {scale * row['published']:.4g} | "
+            f"{scale * row['run']:.4g} | {error}{mark} | {tolerance} |"
+        )
+    return "\n".join(lines)
+
+
+def _plot(series: Series, window: float, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = series["time"]
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
+    panels = (
+        ("tip_dy", 1e3, "bar tip dy (mm)", PUBLISHED["tip_dy_mean"], PUBLISHED["tip_dy_amplitude"]),
+        ("lift", 1.0, "lift (N/m)", PUBLISHED["lift_mean"], PUBLISHED["lift_amplitude"]),
+    )
+    for ax, (name, scale, label, mean, amplitude) in zip(axes, panels, strict=True):
+        ax.plot(t, scale * series[name], lw=0.9, label="this run")
+        for sign in (-1, 1):
+            level = scale * (mean.value + sign * amplitude.value)
+            ax.axhline(level, color="k", ls="--", lw=0.8, label="published" if sign < 0 else None)
+        ax.axvspan(t[-1] - window, t[-1], color="0.9", zorder=0)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper left", frameon=False)
+    axes[-1].set_xlabel("time (s); shaded: the window compared")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _smoke_check(series: Series, time_step: float, end_time: float) -> list[str]:
+    """What is missing from a smoke run's outputs (nothing: the run went through)."""
+    problems = []
+    expected = round(end_time / time_step)
+    rows = int(np.sum(series["time"] > 1e-12))
+    if rows != expected:
+        problems.append(f"the solid's watch point has {rows} windows, not {expected}")
+    for name in SIGNALS:
+        if not np.all(np.isfinite(series[name])):
+            problems.append(f"{name} is not finite")
+    if not series["drag"][-1] > 0:
+        problems.append(f"the drag at the end is {series['drag'][-1]:.3g} N/m, not positive")
+    return problems
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m gymprecice_tutorials.turek_hron.validate`` (module docstring)."""
+    parser = argparse.ArgumentParser(
+        prog="python -m gymprecice_tutorials.turek_hron.validate",
+        description=__doc__.split("\n\n")[0],
+    )
+    parser.add_argument("--resolution", choices=sorted(RESOLUTIONS), default="coarse")
+    parser.add_argument("--time-step", type=float, default=1e-3, help="time window (s)")
+    parser.add_argument("--end-time", type=float, help=f"simulated seconds ({FULL_END:g})")
+    parser.add_argument("--degree", type=int, default=2, help="the solid's polynomial degree")
+    parser.add_argument("--window", type=float, default=WINDOW, help="the last seconds compared")
+    parser.add_argument("--smoke", action="store_true", help=f"{SMOKE_END:g} s, no comparison")
+    parser.add_argument("--out", type=Path, help="where the run is made (default: temporary)")
+    parser.add_argument("--json", type=Path, help="write the comparison here (and .md beside)")
+    parser.add_argument("--figure", type=Path, help="draw the tip's dy and the lift here")
+    args = parser.parse_args(argv)
+    end = args.end_time or (SMOKE_END if args.smoke else FULL_END)
+    if not (args.time_step > 0 and end > 0 and args.degree >= 1):
+        parser.error("--time-step and --end-time must be positive, --degree at least 1")
+    if not args.smoke and not 0 < args.window < end:
+        parser.error(f"--window must lie in (0, {end:g}) s, got {args.window:g}")
+    root = args.out or Path(tempfile.mkdtemp(prefix="fsi3-validation-"))
+    series, seconds = run_uncontrolled(args.resolution, args.time_step, end, args.degree, root)
+    cells = cell_count(RESOLUTIONS[args.resolution])
+    setup = (
+        f"FSI3, {args.resolution} mesh ({cells} cells), time step {args.time_step:g} s, "
+        f"solid degree {args.degree}, to t = {end:g} s"
+    )
+    print(setup)
+    print(f"wall-clock: {seconds:.0f} s")
+    if args.smoke:
+        problems = _smoke_check(series, args.time_step, end)
+        for problem in problems:
+            print(f"smoke run: {problem}", file=sys.stderr)
+        print("smoke run: every output in place" if not problems else "smoke run failed")
+        return 1 if problems else 0
+    figures = compare(series, args.window)
+    ok = all(row["within"] for row in figures.values())
+    table = _table(figures)
+    print(table)
+    print("every figure within its tolerance" if ok else "a figure misses its tolerance")
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        record = {
+            "setup": setup,
+            "resolution": args.resolution,
+            "cells": cells,
+            "time_step": args.time_step,
+            "degree": args.degree,
+            "end_time": end,
+            "window": args.window,
+            "reference": "Turek & Hron (2006), FSI3",
+            "figures": figures,
+            "wall_clock_s": round(seconds, 1),
+            "within": ok,
+        }
+        args.json.write_text(json.dumps(record, indent=2) + "\n")
+        cost = f"wall-clock: {seconds:.0f} s"
+        args.json.with_suffix(".md").write_text(f"{setup}\n\n{table}\n\n{cost}\n")
+    if args.figure is not None:
+        _plot(series, args.window, args.figure)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

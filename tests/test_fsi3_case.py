@@ -1,0 +1,156 @@
+"""Turek and Hron's FSI3: the case's files, the figures of an oscillation and the
+validation command's comparisons and refusals, everything that needs no solver.
+
+The mesh through blockMesh and the coupled run itself are tests/test_fsi3_real.py.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from gymprecice_tutorials.turek_hron.case import INFLOW_MEAN, case_files, inflow
+from gymprecice_tutorials.turek_hron.mesh import (
+    GEOMETRY,
+    RESOLUTIONS,
+    Fsi3Resolution,
+    blockmesh_dict,
+    cell_count,
+)
+from gymprecice_tutorials.turek_hron.reference import PUBLISHED, Figure, oscillation
+from gymprecice_tutorials.turek_hron.validate import compare
+
+
+def _sine(mean: float, amplitude: float, frequency: float, end: float = 3.0) -> tuple:
+    t = np.arange(0.0, end, 1e-3)
+    return t, mean + amplitude * np.sin(2 * math.pi * frequency * t + 0.3)
+
+
+def test_an_oscillations_figures_are_the_benchmarks_mean_amplitude_and_frequency() -> None:
+    t, v = _sine(0.4, 2.5, 5.3)
+    figures = oscillation(t, v, window=1.0)
+    assert figures.mean == pytest.approx(0.4, abs=1e-3)
+    assert figures.amplitude == pytest.approx(2.5, rel=1e-3)
+    assert figures.frequency == pytest.approx(5.3, rel=1e-3)
+    assert figures.periods == 4  # five upward crossings in a second at 5.3 Hz
+
+
+def test_a_window_without_two_crossings_has_no_figures() -> None:
+    t = np.linspace(0.0, 1.0, 200)
+    figures = oscillation(t, t**2, window=0.5)  # rises throughout: no period
+    assert math.isnan(figures.frequency) and figures.periods == 0
+
+
+def test_figures_pass_within_their_tolerance_and_only_there() -> None:
+    relative, absolute = Figure(100.0, 0.05), Figure(0.0, 2.0, "absolute")
+    assert relative.passes(104.9) and not relative.passes(105.1)
+    assert absolute.passes(-1.9) and not absolute.passes(2.1)
+    assert not relative.passes(float("nan"))
+
+
+def test_a_run_at_the_published_values_is_within_every_tolerance_and_one_off_is_not() -> None:
+    def series(scale: float) -> dict[str, np.ndarray]:
+        out: dict[str, np.ndarray] = {}
+        for signal in ("tip_dx", "tip_dy", "drag", "lift"):
+            mean = PUBLISHED[f"{signal}_mean"].value
+            amplitude = scale * PUBLISHED[f"{signal}_amplitude"].value
+            t, v = _sine(mean, amplitude, PUBLISHED[f"{signal}_frequency"].value)
+            out["time"], out[signal] = t, v
+        return out
+
+    table = compare(series(1.0), window=1.0)
+    assert set(table) == set(PUBLISHED)
+    assert all(row["within"] for row in table.values()), table
+    damped = compare(series(0.5), window=1.0)  # half the swing
+    assert not damped["tip_dy_amplitude"]["within"]
+    assert damped["tip_dy_frequency"]["within"]
+
+
+def test_the_published_figures_are_turek_and_hrons_fsi3() -> None:
+    assert PUBLISHED["tip_dy_amplitude"].value == pytest.approx(34.38e-3)
+    assert PUBLISHED["lift_amplitude"].value == pytest.approx(149.78)
+    assert PUBLISHED["drag_mean"].value == pytest.approx(457.3)
+    assert PUBLISHED["tip_dy_frequency"].value == pytest.approx(5.3)
+    assert PUBLISHED["drag_frequency"].value == pytest.approx(10.9)
+
+
+def test_the_mesh_declares_every_patch_and_the_cells_it_counts() -> None:
+    text = blockmesh_dict(RESOLUTIONS["coarse"])
+    for patch in ("inlet", "outlet", "walls", "cylinder", "jet1", "jet2", "flap"):
+        assert re.search(rf"^    {patch}\n    {{\n        type (wall|patch);", text, re.M), patch
+    cells = 0
+    for nx, ny in re.findall(r"\) \((\d+) (\d+) 1\) simpleGrading", text):
+        cells += int(nx) * int(ny)
+    assert cells == cell_count(RESOLUTIONS["coarse"])
+    # the bar's five faces: its two surfaces in the box and beside it, and its tip
+    flap = text.split("    flap\n", 1)[1].split(");", 1)[0]
+    assert flap.count("(") - 1 == 5
+
+
+def test_finer_resolutions_have_more_cells() -> None:
+    counts = [cell_count(RESOLUTIONS[name]) for name in ("coarse", "medium", "fine")]
+    assert counts == sorted(counts) and counts[0] > 1000
+    assert cell_count(Fsi3Resolution(cell=0.005)) > counts[0]
+
+
+def test_the_inflow_is_turek_and_hrons_ramped_parabola() -> None:
+    h = GEOMETRY.height
+    assert inflow(h / 2, 10.0) == pytest.approx(1.5 * INFLOW_MEAN)  # peak, after the ramp
+    assert inflow(h / 2, 1.0) == pytest.approx(0.75 * INFLOW_MEAN)  # half way up the ramp
+    assert inflow(0.0, 5.0) == 0.0 and inflow(h, 5.0) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_runs_time_step_and_end_reach_every_file_that_holds_them() -> None:
+    files = case_files("coarse", time_step=0.002, end_time=3.0, degree=3, action_time=0.02)
+    xml = files["precice-config.xml"]
+    assert xml.count('<time-window-size value="0.002" />') == 2
+    assert xml.count('<max-time value="3" />') == 2
+    assert "deltaT          0.002;" in files["fluid-openfoam/system/controlDict"]
+    prm = files["solid-dealii/parameters.prm"]
+    assert "set Time step size  = 0.002" in prm and "set End time        = 3" in prm
+    assert "set Polynomial degree = 3" in prm
+    assert json.loads(files["gymprecice-config.json"])["actions"]["windows"] == 10
+    assert "fluid-openfoam/system/blockMeshDict" in files
+    ramp = [k for k in files if k.endswith("/U") and "boundaryData" in k]
+    assert len(ramp) == 42  # 0 to 2 s every 0.05 s, then held
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"resolution": "huge"}, "resolution must be one of"),
+        ({"action_time": 0.0155}, "whole number of time windows"),
+        ({"time_step": 0.0}, "must be positive"),
+    ],
+)
+def test_a_case_of_bad_settings_is_refused_naming_the_setting(kwargs, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        case_files(**kwargs)
+
+
+def test_the_validation_command_refuses_a_window_longer_than_the_run(tmp_path) -> None:
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gymprecice_tutorials.turek_hron.validate",
+            "--end-time",
+            "1",
+            "--window",
+            "2",
+            "--out",
+            str(tmp_path / "runs"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2
+    assert "--window must lie in (0, 1) s" in result.stderr
+    assert not (tmp_path / "runs").exists()

@@ -1,0 +1,74 @@
+"""Turek and Hron's FSI3 on the real stack: the mesh through blockMesh and checkMesh, and
+the coupled run through the environment (``validate --smoke``).
+
+The comparison with the published values needs seconds of simulated time (tens of
+minutes on 2 cores): it is the documented full run of docs/validation.md. Skipped,
+naming what is missing, on machines without the real stack;
+``GYMPRECICE_REQUIRE_REAL=1`` (CI) fails instead.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+
+import pytest
+
+from gymprecice.stack import stack_which
+from gymprecice_openfoam.installation import find_openfoam
+from gymprecice_openfoam.testing import missing_coupled_stack
+from gymprecice_tutorials.case_files import write_case_files
+from gymprecice_tutorials.turek_hron.case import case_files
+from gymprecice_tutorials.turek_hron.mesh import RESOLUTIONS, cell_count
+
+
+@pytest.mark.openfoam
+def test_the_coarse_mesh_is_sound_and_has_the_cells_and_patches_it_declares(tmp_path) -> None:
+    """Cost: about 2 s (blockMesh and checkMesh of 4,808 cells)."""
+    missing = missing_coupled_stack("blockMesh", "checkMesh")
+    if any(item.startswith("OpenFOAM") for item in missing):
+        pytest.skip("needs " + ", ".join(missing))
+    case = write_case_files("fsi3", case_files("coarse"), tmp_path) / "fluid-openfoam"
+    env = find_openfoam().environ()
+    for program in ("blockMesh", "checkMesh"):
+        done = subprocess.run(
+            [program], cwd=case, env=env, capture_output=True, text=True, timeout=120
+        )
+        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    report = done.stdout
+    assert "Mesh OK." in report
+    assert int(re.search(r"cells:\s+(\d+)", report).group(1)) == cell_count(RESOLUTIONS["coarse"])
+    sizes = dict(re.findall(r"^\s+(\w+)\s+(\d+)\s+\d+\s+ok", report, re.MULTILINE))
+    assert {"inlet", "outlet", "walls", "cylinder", "jet1", "jet2", "flap"} <= set(sizes)
+    # the bar (0.35 m long, 0.02 m thick, cells of 0.01 m) is wetted on three sides
+    assert int(sizes["flap"]) >= 2 * 35 + 2
+
+
+@pytest.mark.precice
+@pytest.mark.openfoam
+@pytest.mark.dealii
+@pytest.mark.slow
+@pytest.mark.timeout(400)
+def test_the_coupled_fsi3_run_goes_through_the_environment(tmp_path) -> None:
+    """Cost: about a minute (0.1 s of FSI3, 100 implicitly coupled windows)."""
+    missing = missing_coupled_stack("pimpleFoam", "blockMesh")
+    if not stack_which("elasticity"):
+        missing.append("the deal.II-preCICE adapter (elasticity)")
+    if missing:
+        pytest.skip("needs " + ", ".join(missing))
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gymprecice_tutorials.turek_hron.validate",
+            "--smoke",
+            "--out",
+            str(tmp_path / "runs"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=360,
+    )
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert "smoke run: every output in place" in result.stdout
