@@ -24,7 +24,7 @@ from gymprecice_tutorials.turek_hron.mesh import (
     cell_count,
 )
 from gymprecice_tutorials.turek_hron.reference import PUBLISHED, Figure, oscillation
-from gymprecice_tutorials.turek_hron.validate import compare
+from gymprecice_tutorials.turek_hron.validate import compare, study_table
 
 
 def _sine(mean: float, amplitude: float, frequency: float, end: float = 3.0) -> tuple:
@@ -154,3 +154,25 @@ def test_the_validation_command_refuses_a_window_longer_than_the_run(tmp_path) -
     assert result.returncode == 2
     assert "--window must lie in (0, 1) s" in result.stderr
     assert not (tmp_path / "runs").exists()
+
+
+def test_the_study_table_has_a_row_per_run_marking_the_figures_out_of_tolerance() -> None:
+    def record(resolution: str, scale: float) -> dict:
+        series: dict[str, np.ndarray] = {}
+        for signal in ("tip_dx", "tip_dy", "drag", "lift"):
+            mean = PUBLISHED[f"{signal}_mean"].value
+            amplitude = scale * PUBLISHED[f"{signal}_amplitude"].value
+            t, v = _sine(mean, amplitude, PUBLISHED[f"{signal}_frequency"].value)
+            series["time"], series[signal] = t, v
+        return {
+            "resolution": resolution,
+            "cells": 4808,
+            "time_step": 0.002,
+            "figures": compare(series, window=1.0),
+            "wall_clock_s": 600.0,
+        }
+
+    table = study_table([record("coarse", 0.5), record("medium", 1.0)]).splitlines()
+    assert table[2].startswith("| published | | | 34.38 |")
+    assert table[3].startswith("| coarse | 4,808 | 0.002 | 17.19 (out) |")
+    assert "(out)" not in table[4] and table[4].endswith("| 10 min |")

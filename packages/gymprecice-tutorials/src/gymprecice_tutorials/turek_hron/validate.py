@@ -8,8 +8,10 @@ seconds with :data:`~.reference.PUBLISHED`, each figure within its stated tolera
     python -m gymprecice_tutorials.turek_hron.validate [--resolution coarse|medium|fine]
         [--time-step S] [--end-time S] [--degree P] [--window S] [--smoke]
         [--out DIR] [--json FILE] [--figure PNG]
+    python -m gymprecice_tutorials.turek_hron.validate --summarize RESULT.json ...
 
-``--smoke`` runs 0.1 s and checks that the coupled run goes through with every
+``--summarize`` prints the mesh and time-step study: one row per result file that
+``--json`` wrote, the figures that tell the runs apart. ``--smoke`` runs 0.1 s and checks that the coupled run goes through with every
 output in place, comparing nothing (CI). Exits 1 when a figure misses its tolerance
 (or the smoke run's outputs do not add up), 2 on bad input. Needs the real stack
 (OpenFOAM, preCICE and the deal.II adapter).
@@ -158,6 +160,38 @@ def _plot(series: Series, window: float, path: Path) -> None:
     plt.close(fig)
 
 
+#: the study's columns: a figure of :data:`~.reference.PUBLISHED` and its heading
+STUDY = (
+    ("tip_dy_amplitude", "tip dy amplitude (mm)", 1e3),
+    ("tip_dy_frequency", "tip dy frequency (Hz)", 1.0),
+    ("tip_dx_mean", "tip dx mean (mm)", 1e3),
+    ("drag_mean", "drag mean (N/m)", 1.0),
+    ("drag_amplitude", "drag amplitude (N/m)", 1.0),
+    ("lift_amplitude", "lift amplitude (N/m)", 1.0),
+)
+
+
+def study_table(records: Sequence[dict[str, Any]]) -> str:
+    """The mesh and time-step study: a row per run (a ``--json`` record), the published
+    values first."""
+    head = ["run", "cells", "time step (s)", *(label for _, label, _ in STUDY), "wall-clock"]
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    published = [f"{scale * PUBLISHED[name].value:.4g}" for name, _, scale in STUDY]
+    lines.append("| published | | | " + " | ".join(published) + " | |")
+    for record in records:
+        cells = [
+            f"{scale * record['figures'][name]['run']:.4g}"
+            + ("" if record["figures"][name]["within"] else " (out)")
+            for name, _, scale in STUDY
+        ]
+        lines.append(
+            f"| {record['resolution']} | {record['cells']:,} | {record['time_step']:g} | "
+            + " | ".join(cells)
+            + f" | {record['wall_clock_s'] / 60:.0f} min |"
+        )
+    return "\n".join(lines)
+
+
 def _smoke_check(series: Series, time_step: float, end_time: float) -> list[str]:
     """What is missing from a smoke run's outputs (nothing: the run went through)."""
     problems = []
@@ -188,7 +222,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="where the run is made (default: temporary)")
     parser.add_argument("--json", type=Path, help="write the comparison here (and .md beside)")
     parser.add_argument("--figure", type=Path, help="draw the tip's dy and the lift here")
+    parser.add_argument(
+        "--summarize", type=Path, nargs="+", metavar="JSON", help="print the study's table"
+    )
     args = parser.parse_args(argv)
+    if args.summarize:
+        missing = [str(path) for path in args.summarize if not path.is_file()]
+        if missing:
+            parser.error(f"no such result file: {', '.join(missing)} (write one with --json)")
+        print(study_table([json.loads(path.read_text()) for path in args.summarize]))
+        return 0
     end = args.end_time or (SMOKE_END if args.smoke else FULL_END)
     if not (args.time_step > 0 and end > 0 and args.degree >= 1):
         parser.error("--time-step and --end-time must be positive, --degree at least 1")
