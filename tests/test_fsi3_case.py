@@ -32,6 +32,17 @@ def _sine(mean: float, amplitude: float, frequency: float, end: float = 3.0) -> 
     return t, mean + amplitude * np.sin(2 * math.pi * frequency * t + 0.3)
 
 
+def _published(scale: float) -> dict[str, np.ndarray]:
+    """Sines at the published means and frequencies, ``scale`` times their amplitudes."""
+    out: dict[str, np.ndarray] = {}
+    for signal in ("tip_dx", "tip_dy", "drag", "lift"):
+        mean = PUBLISHED[f"{signal}_mean"].value
+        amplitude = scale * PUBLISHED[f"{signal}_amplitude"].value
+        t, v = _sine(mean, amplitude, PUBLISHED[f"{signal}_frequency"].value)
+        out["time"], out[signal] = t, v
+    return out
+
+
 def test_an_oscillations_figures_are_the_benchmarks_mean_amplitude_and_frequency() -> None:
     t, v = _sine(0.4, 2.5, 5.3)
     figures = oscillation(t, v, window=1.0)
@@ -55,19 +66,10 @@ def test_figures_pass_within_their_tolerance_and_only_there() -> None:
 
 
 def test_a_run_at_the_published_values_is_within_every_tolerance_and_one_off_is_not() -> None:
-    def series(scale: float) -> dict[str, np.ndarray]:
-        out: dict[str, np.ndarray] = {}
-        for signal in ("tip_dx", "tip_dy", "drag", "lift"):
-            mean = PUBLISHED[f"{signal}_mean"].value
-            amplitude = scale * PUBLISHED[f"{signal}_amplitude"].value
-            t, v = _sine(mean, amplitude, PUBLISHED[f"{signal}_frequency"].value)
-            out["time"], out[signal] = t, v
-        return out
-
-    table = compare(series(1.0), window=1.0)
+    table = compare(_published(1.0), window=1.0)
     assert set(table) == set(PUBLISHED)
     assert all(row["within"] for row in table.values()), table
-    damped = compare(series(0.5), window=1.0)  # half the swing
+    damped = compare(_published(0.5), window=1.0)  # half the swing
     assert not damped["tip_dy_amplitude"]["within"]
     assert damped["tip_dy_frequency"]["within"]
 
@@ -158,17 +160,11 @@ def test_the_validation_command_refuses_a_window_longer_than_the_run(tmp_path) -
 
 def test_the_study_table_has_a_row_per_run_marking_the_figures_out_of_tolerance() -> None:
     def record(resolution: str, scale: float) -> dict:
-        series: dict[str, np.ndarray] = {}
-        for signal in ("tip_dx", "tip_dy", "drag", "lift"):
-            mean = PUBLISHED[f"{signal}_mean"].value
-            amplitude = scale * PUBLISHED[f"{signal}_amplitude"].value
-            t, v = _sine(mean, amplitude, PUBLISHED[f"{signal}_frequency"].value)
-            series["time"], series[signal] = t, v
         return {
             "resolution": resolution,
             "cells": 4808,
             "time_step": 0.002,
-            "figures": compare(series, window=1.0),
+            "figures": compare(_published(scale), window=1.0),
             "wall_clock_s": 600.0,
         }
 

@@ -231,32 +231,38 @@ def blockmesh_dict(geometry: Geometry, resolution: Resolution, *, jets: bool = T
         edges.append(f"arc {a} {b} {foam_vector(mx, my, z0)}")
         edges.append(f"arc {a + n_front} {b + n_front} {foam_vector(mx, my, z1)}")
 
-    front = [f"    {foam_vector(x, y, z0)} // {i}" for i, (x, y) in enumerate(points)]
-    back = [f"    {foam_vector(x, y, z1)} // {i + n_front}" for i, (x, y) in enumerate(points)]
-
-    def patch(name: str, kind: str, fs: list[str]) -> str:
-        body = "\n".join(f"            {f}" for f in fs)
-        return f"    {name}\n    {{\n        type {kind};\n        faces\n        (\n{body}\n        );\n    }}"
-
-    patches = [
-        patch("inlet", "patch", faces["inlet"]),
-        patch("outlet", "patch", faces["outlet"]),
-        patch("walls", "wall", faces["walls"]),
-        patch("cylinder", "wall", faces["cylinder"]),
-    ]
-    if jets:
-        patches += [patch("jet1", "wall", faces["jet1"]), patch("jet2", "wall", faces["jet2"])]
-    empty = [f"            ({' '.join(str(i) for i in reversed(q))})" for q in quads]
-    empty += [f"            ({' '.join(str(i + n_front) for i in q)})" for q in quads]
-    patches.append(
-        "    frontAndBack\n    {\n        type empty;\n        faces\n        (\n"
-        + "\n".join(empty)
-        + "\n        );\n    }"
-    )
+    names = ["inlet", "outlet", "walls", "cylinder"] + (["jet1", "jet2"] if jets else [])
+    kinds = {"inlet": "patch", "outlet": "patch"}
+    patches = [(name, kinds.get(name, "wall"), faces[name]) for name in names]
     info = (
         f"// cells: {c.cells} (wall faces {c.wall_faces}, radial {c.n_radial} with grading "
         f"{c.radial_grading:.3g}, wake {c.n_wake} x-cells, h_box {c.h_box:.4g})"
     )
+    return blockmesh_text(info, points, (z0, z1), blocks, edges, patches, quads)
+
+
+def blockmesh_text(
+    info: str,
+    points: Sequence[tuple[float, float]],
+    z: tuple[float, float],
+    blocks: Sequence[str],
+    edges: Sequence[str],
+    patches: Sequence[tuple[str, str, Sequence[str]]],
+    quads: Sequence[Sequence[int]],
+) -> str:
+    """``system/blockMeshDict`` of a one-cell-deep 2-D mesh.
+
+    ``points`` are the front plane's vertices (at ``z[0]``); the back plane's (at
+    ``z[1]``) follow them, numbered on. ``patches`` are ``(name, type, faces)``; the
+    ``frontAndBack`` patch (type empty) is made of the blocks' front ``quads``.
+    """
+    n_front = len(points)
+    front = [f"    {foam_vector(x, y, z[0])} // {i}" for i, (x, y) in enumerate(points)]
+    back = [f"    {foam_vector(x, y, z[1])} // {i + n_front}" for i, (x, y) in enumerate(points)]
+    empty = [f"({' '.join(str(i) for i in reversed(q))})" for q in quads]
+    empty += [f"({' '.join(str(i + n_front) for i in q)})" for q in quads]
+    boundary = [_patch(name, kind, faces) for name, kind, faces in patches]
+    boundary.append(_patch("frontAndBack", "empty", empty))
     return (
         foam_header("dictionary", "system", "blockMeshDict")
         + f"{info}\n\nscale 1;\n\nvertices\n(\n"
@@ -266,7 +272,12 @@ def blockmesh_dict(geometry: Geometry, resolution: Resolution, *, jets: bool = T
         + "\n);\n\nedges\n(\n"
         + "\n".join(f"    {e}" for e in edges)
         + "\n);\n\nboundary\n(\n"
-        + "\n".join(patches)
+        + "\n".join(boundary)
         + "\n);\n\nmergePatchPairs\n(\n);\n"
         + FOOTER
     )
+
+
+def _patch(name: str, kind: str, faces: Sequence[str]) -> str:
+    body = "\n".join(f"            {f}" for f in faces)
+    return f"    {name}\n    {{\n        type {kind};\n        faces\n        (\n{body}\n        );\n    }}"

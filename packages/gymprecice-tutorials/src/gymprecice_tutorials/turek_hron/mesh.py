@@ -25,11 +25,10 @@ cell size; the wake grows geometrically towards the outlet.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
-from gymprecice_tutorials.recipes.foam_format import FOOTER, foam_header, foam_number, foam_vector
-from gymprecice_tutorials.recipes.mesh import count_for_grading, geometric_ratio
+from gymprecice_tutorials.recipes.foam_format import foam_number, foam_vector
+from gymprecice_tutorials.recipes.mesh import blockmesh_text, count_for_grading, geometric_ratio
 
 __all__ = ["GEOMETRY", "RESOLUTIONS", "Fsi3Geometry", "Fsi3Resolution", "blockmesh_dict"]
 
@@ -245,36 +244,14 @@ def blockmesh_dict(resolution: Fsi3Resolution, geometry: Fsi3Geometry = GEOMETRY
         edges.append(f"arc {cyl[k]} {cyl[k + 1]} {foam_vector(mx, my, z0)}")
         edges.append(f"arc {cyl[k] + n_front} {cyl[k + 1] + n_front} {foam_vector(mx, my, z1)}")
 
-    front = [f"    {foam_vector(x, y, z0)} // {i}" for i, (x, y) in enumerate(points)]
-    back = [f"    {foam_vector(x, y, z1)} // {i + n_front}" for i, (x, y) in enumerate(points)]
     kinds = {"inlet": "patch", "outlet": "patch"}
-    patches = [_patch(name, kinds.get(name, "wall"), fs) for name, fs in faces.items()]
-    empty = [f"({' '.join(str(i) for i in reversed(q))})" for q in quads]
-    empty += [f"({' '.join(str(i + n_front) for i in q)})" for q in quads]
-    patches.append(_patch("frontAndBack", "empty", empty))
+    patches = [(name, kinds.get(name, "wall"), fs) for name, fs in faces.items()]
     info = (
         f"// Turek-Hron FSI3 channel, cell {resolution.cell:g} m: "
         f"{cell_count(resolution, geometry)} cells (radial {c.radial}, wake {c.wake})"
     )
-    return (
-        foam_header("dictionary", "system", "blockMeshDict")
-        + f"{info}\n\nscale 1;\n\nvertices\n(\n"
-        + "\n".join(front + back)
-        + "\n);\n\nblocks\n(\n"
-        + "\n".join(f"    {b}" for b in blocks)
-        + "\n);\n\nedges\n(\n"
-        + "\n".join(f"    {e}" for e in edges)
-        + "\n);\n\nboundary\n(\n"
-        + "\n".join(patches)
-        + "\n);\n\nmergePatchPairs\n(\n);\n"
-        + FOOTER
-    )
+    return blockmesh_text(info, points, (z0, z1), blocks, edges, patches, quads)
 
 
 def _same(a: float, b: float) -> bool:
     return abs(a - b) < 1e-12
-
-
-def _patch(name: str, kind: str, faces: Sequence[str]) -> str:
-    body = "\n".join(f"            {f}" for f in faces)
-    return f"    {name}\n    {{\n        type {kind};\n        faces\n        (\n{body}\n        );\n    }}"
