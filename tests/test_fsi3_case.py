@@ -172,3 +172,11 @@ def test_the_study_table_has_a_row_per_run_marking_the_figures_out_of_tolerance(
     assert table[2].startswith("| published | | | 34.38 |")
     assert table[3].startswith("| coarse | 4,808 | 0.002 | 17.19 (out) |")
     assert "(out)" not in table[4] and table[4].endswith("| 10 min |")
+
+
+def test_a_jet_bound_that_is_not_positive_is_refused_before_any_case_is_written(tmp_path):
+    from gymprecice_tutorials.turek_hron.environment import TurekHronEnv
+
+    with pytest.raises(ValueError, match="max_flow_rate must be positive"):
+        TurekHronEnv(max_flow_rate=0.0, run_root=tmp_path)
+    assert not any(tmp_path.iterdir())

@@ -68,13 +68,13 @@ class TurekHronEnv(Adapter):
         run_root: str | Path | None = None,
         **kwargs: Any,
     ) -> None:
+        if not max_flow_rate > 0:  # before anything is written or started
+            raise ValueError(f"max_flow_rate must be positive, got {max_flow_rate}")
         if options is None:
             files = case_files(resolution, time_step, end_time, degree, action_time)
             name = f"turek-hron-fsi3-{resolution}"
             options = write_case_files(name, files, run_root)
         super().__init__(options, idx, run_root=run_root, **kwargs)
-        if not max_flow_rate > 0:
-            raise ValueError(f"max_flow_rate must be positive, got {max_flow_rate}")
         self.max_flow_rate = float(max_flow_rate)
         self.watch_timeout = float(watch_timeout)
         bound = np.float32(self.max_flow_rate)
