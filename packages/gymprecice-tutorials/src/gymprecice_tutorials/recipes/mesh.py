@@ -55,6 +55,18 @@ def count_for_grading(length: float, first: float, ratio: float) -> int:
     return best
 
 
+def radial_count(extent: float, first: float, last: float) -> int:
+    """Cells of an O-grid's radial extent graded from ``first`` at the wall to ``last``.
+
+    The growth factor that the two sizes and the extent imply sets the count; cells no
+    larger at the wall than at the box are spread evenly instead.
+    """
+    if last <= first:
+        return max(2, round(extent / last))
+    growth = (extent - first) / (extent - last)
+    return max(2, round(1 + math.log(last / first) / math.log(growth)))
+
+
 @dataclass(frozen=True)
 class BlockCounts:
     """Cell counts of the blocks (derived from :class:`Resolution`)."""
@@ -101,11 +113,7 @@ def block_counts(geometry: Geometry, resolution: Resolution) -> BlockCounts:
     # O-grid: geometric cells from wall_cell * D to h_box over the (side) radial extent
     extent = s - geometry.radius
     first = resolution.wall_cell * geometry.diameter
-    if h_box <= first:
-        n_radial = max(2, round(extent / h_box))
-    else:
-        growth = (extent - first) / (extent - h_box)
-        n_radial = max(2, round(1 + math.log(h_box / first) / math.log(growth)))
+    n_radial = radial_count(extent, first, h_box)
     radial_grading = geometric_ratio(n_radial, extent, h_box)
     n_wake = count_for_grading(geometry.length - cx - s, h_box, resolution.wake_grading)
     return BlockCounts(

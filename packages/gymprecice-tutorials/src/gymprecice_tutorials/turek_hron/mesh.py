@@ -28,7 +28,12 @@ import math
 from dataclasses import dataclass
 
 from gymprecice_tutorials.recipes.foam_format import foam_number, foam_vector
-from gymprecice_tutorials.recipes.mesh import blockmesh_text, count_for_grading, geometric_ratio
+from gymprecice_tutorials.recipes.mesh import (
+    blockmesh_text,
+    count_for_grading,
+    geometric_ratio,
+    radial_count,
+)
 
 __all__ = ["GEOMETRY", "RESOLUTIONS", "Fsi3Geometry", "Fsi3Resolution", "blockmesh_dict"]
 
@@ -108,12 +113,7 @@ def _counts(g: Fsi3Geometry, res: Fsi3Resolution) -> _Counts:
     cell = res.cell
     delta = s * math.tan(math.radians(g.jet_width / 2))
     extent = s - g.radius
-    first = res.wall_cell * g.diameter
-    if cell <= first:
-        radial = max(2, round(extent / cell))
-    else:
-        growth = (extent - first) / (extent - cell)
-        radial = max(2, round(1 + math.log(cell / first) / math.log(growth)))
+    radial = radial_count(extent, res.wall_cell * g.diameter, cell)
     return _Counts(
         side=max(2, round(2 * s / cell)),
         arc=max(1, round((s - delta) / cell)),
