@@ -1,6 +1,6 @@
 """Build the documentation site strictly, and say where each problem is.
 
-    python scripts/build_docs.py [--site-dir DIR]
+    python scripts/build_docs.py [--site-dir DIR] [--repo-url URL [--edit-uri PATH]]
 
 runs ``mkdocs build --strict`` on mkdocs.yml: a broken link, a missing page, an anchor that
 is not there or a docstring cross-reference that does not resolve fails the build. MkDocs
@@ -13,6 +13,11 @@ The site offers the source it documents: before the build, the committed tree (`
 archive HEAD``; the files on disk outside a git checkout) is packed as
 ``docs/downloads/gymprecice-source.tar.gz`` (ignored by git), which the site serves and Get
 started links, so a reader of the site alone can set up a machine.
+
+A site built for a published copy of the project names its repository: ``--repo-url``
+links it in every page's header, and each page gets an "edit this page" button that opens
+its Markdown source there (``--edit-uri``, relative to the address; the default,
+``edit/main/docs/``, is GitHub's and GitLab's form). Without an address, neither appears.
 
 A machine without the site's dependencies gets their names and the command that installs
 them (docs/requirements.txt; scripts/setup.sh installs it into .venv).
@@ -188,7 +193,23 @@ def write_source_archive(path: Path = SOURCE_ARCHIVE) -> Path:
     return path
 
 
-def build(site_dir: Path | None = None) -> BuildResult:
+#: Where an edit link points, relative to the repository's address (GitHub's and GitLab's).
+DEFAULT_EDIT_URI = "edit/main/docs/"
+
+
+def repository_env(repo_url: str | None, edit_uri: str | None = None) -> dict[str, str]:
+    """The variables mkdocs.yml reads for the repository link and the edit links (none
+    without an address: an edit link needs somewhere to go)."""
+    if not repo_url:
+        return {}
+    if not repo_url.startswith(("https://", "http://")):
+        raise ValueError(f"--repo-url must be an http(s) address, not {repo_url!r}")
+    return {"GYMPRECICE_REPO_URL": repo_url, "GYMPRECICE_EDIT_URI": edit_uri or DEFAULT_EDIT_URI}
+
+
+def build(
+    site_dir: Path | None = None, repo_url: str | None = None, edit_uri: str | None = None
+) -> BuildResult:
     """``mkdocs build --strict``; ``problems`` are its warnings and errors, placed by line."""
     missing = missing_requirements()
     if missing:
@@ -198,6 +219,9 @@ def build(site_dir: Path | None = None) -> BuildResult:
     if site_dir is not None:
         command += ["--site-dir", str(site_dir)]
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "NO_COLOR": "1"}
+    for variable in ("GYMPRECICE_REPO_URL", "GYMPRECICE_EDIT_URI"):
+        env.pop(variable, None)
+    env.update(repository_env(repo_url, edit_uri))
     proc = subprocess.run(
         command, cwd=ROOT, capture_output=True, text=True, env=env, stdin=subprocess.DEVNULL
     )
@@ -214,8 +238,24 @@ def build(site_dir: Path | None = None) -> BuildResult:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n", 1)[0])
     parser.add_argument("--site-dir", type=Path, default=None, help="where the site goes (site/)")
+    parser.add_argument(
+        "--repo-url",
+        default=None,
+        help="the repository's address: a link in every page's header, and edit links",
+    )
+    parser.add_argument(
+        "--edit-uri",
+        default=None,
+        help=f"a page's source, relative to --repo-url (default {DEFAULT_EDIT_URI})",
+    )
     args = parser.parse_args(argv)
-    result = build(args.site_dir)
+    if args.edit_uri and not args.repo_url:
+        parser.error("--edit-uri needs --repo-url: an edit link is relative to the address")
+    try:
+        repository_env(args.repo_url, args.edit_uri)
+    except ValueError as exc:
+        parser.error(str(exc))
+    result = build(args.site_dir, args.repo_url, args.edit_uri)
     for problem in result.problems:
         print(problem, file=sys.stderr)
     if result.ok:

@@ -67,6 +67,50 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Built]:
         shutil.copytree(site, ROOT / "site", dirs_exist_ok=True)
 
 
+def _site_config(monkeypatch: pytest.MonkeyPatch, **variables: str):
+    """mkdocs.yml as the build reads it, under the build's repository variables alone."""
+    pytest.importorskip("mkdocs")
+    from mkdocs.config import load_config
+
+    for name in ("GYMPRECICE_REPO_URL", "GYMPRECICE_EDIT_URI"):
+        monkeypatch.delenv(name, raising=False)
+    for name, value in variables.items():
+        monkeypatch.setenv(name, value)
+    monkeypatch.chdir(ROOT)
+    return load_config(str(ROOT / "mkdocs.yml"))
+
+
+def test_with_a_repository_address_every_page_links_it_and_its_own_source(monkeypatch):
+    """``--repo-url``: the header's repository link and each page's edit button, which
+    opens that page's Markdown in the repository."""
+    config = _site_config(
+        monkeypatch, **build_docs.repository_env("https://example.org/group/gymprecice")
+    )
+    assert config.repo_url == "https://example.org/group/gymprecice"
+    assert config.edit_uri == "edit/main/docs/"
+    assert "content.action.edit" in config.theme["features"]
+    config = _site_config(
+        monkeypatch, **build_docs.repository_env("https://example.org/g/p", "_edit/dev/docs")
+    )
+    assert config.edit_uri == "_edit/dev/docs/"
+
+
+def test_without_an_address_no_page_has_a_repository_or_edit_link(monkeypatch):
+    config = _site_config(monkeypatch)
+    assert config.repo_url is None and config.edit_uri is None
+    assert build_docs.repository_env(None) == {}
+
+
+def test_a_repository_address_that_is_not_a_web_address_is_refused(capsys) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        build_docs.main(["--repo-url", "gymprecice.git"])
+    assert exit_.value.code == 2
+    assert "--repo-url must be an http(s) address" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        build_docs.main(["--edit-uri", "edit/main/docs/"])
+    assert "--edit-uri needs --repo-url" in capsys.readouterr().err
+
+
 def test_the_site_serves_the_source_that_get_started_sets_up(built: Built) -> None:
     """A reader of the site alone gets the source: the archive Get started links holds the
     set-up and test commands and every distribution, as committed."""
