@@ -32,8 +32,8 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.core import Adapter
-from gymprecice.pidregistry import kill_recorded_groups
+from gymprecice.env.core import Adapter
+from gymprecice.env.pidregistry import kill_recorded_groups
 from gymprecice.testing import case_config
 from gymprecice.testing.flows import fake_cylinder_geometry
 

@@ -32,7 +32,7 @@ from bench_flap_episode import profile_totals
 
 def episode(solid: str, run_root: str) -> dict:
     import gymprecice  # noqa: F401  (registers the ids)
-    from gymprecice.watchpoints import WatchPointLog, watch_point_file_name
+    from gymprecice.plugin.watchpoints import WatchPointLog, watch_point_file_name
     from gymprecice_tutorials.heated_plate.environment import SOLIDS, HeatedPlateEnv
 
     env = HeatedPlateEnv(solid=solid, uncontrolled=True, run_root=run_root)

@@ -37,7 +37,7 @@ import numpy as np
 
 os.environ.setdefault("GYMPRECICE_DISABLE_PLUGINS", "1")
 
-from gymprecice.core import Adapter
+from gymprecice.env.core import Adapter
 from gymprecice.multiagent import MultiAgentAdapter
 from gymprecice.testing.chaos import CylinderEnv, write_case
 from gymprecice.testing.two_jets import TwoJetsEnv

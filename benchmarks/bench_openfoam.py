@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from foamlib import FoamFile
 
-from gymprecice.errors import CaseError
+from gymprecice.plugin.errors import CaseError
 from gymprecice_openfoam import mesh, outputs, testing
 from gymprecice_openfoam.installation import find_openfoam, run_tool
 

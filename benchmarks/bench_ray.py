@@ -45,7 +45,7 @@ CORES_PER_ENV = 2
 
 
 def _make(backend: str, fns: list[Callable[[], Any]], log_dir: Path) -> Any:
-    from gymprecice.sb3 import ResilientSubprocVecEnv
+    from gymprecice.learners.sb3 import ResilientSubprocVecEnv
 
     chosen: Any = None
     if backend == "ray":

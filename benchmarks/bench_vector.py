@@ -78,7 +78,7 @@ def _env_fns(case: Path, runs: Path, n: int) -> list[Callable[[], Any]]:
 
 def _make(kind: str, fns: list[Callable[[], Any]], log_dir: Path) -> Any:
     if kind == "gymprecice":
-        from gymprecice.sb3 import ResilientSubprocVecEnv
+        from gymprecice.learners.sb3 import ResilientSubprocVecEnv
 
         return ResilientSubprocVecEnv(fns, log_dir=log_dir, step_timeout=120, reset_timeout=300)
     from stable_baselines3.common.vec_env import SubprocVecEnv

@@ -72,7 +72,7 @@ class ExampleError(RuntimeError):
 def commands(parser: argparse.ArgumentParser | None = None) -> dict[str, argparse.ArgumentParser]:
     """Every command of ``gymprecice`` (its own and its plugins'), in ``--help``'s order."""
     if parser is None:
-        from gymprecice.cli import build_parser
+        from gymprecice.tools.cli import build_parser
 
         parser = build_parser()
     return dict(_subcommands(parser))
@@ -214,7 +214,7 @@ def _section(name: str, parser: argparse.ArgumentParser, root: argparse.Argument
 def command_reference(parser: argparse.ArgumentParser | None = None) -> str:
     """The page's body: one section per command of ``parser`` (default: ``gymprecice``'s)."""
     if parser is None:
-        from gymprecice.cli import build_parser
+        from gymprecice.tools.cli import build_parser
 
         parser = build_parser()
     sections = [_section(name, sub, parser) for name, sub in commands(parser).items()]

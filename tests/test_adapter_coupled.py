@@ -19,8 +19,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.core import Adapter
-from gymprecice.errors import SolverCrashedError, SolverTimeoutError
+from gymprecice.env.core import Adapter
+from gymprecice.plugin.errors import SolverCrashedError, SolverTimeoutError
 from gymprecice.testing import case_config
 from gymprecice.testing.flows import place_jets
 

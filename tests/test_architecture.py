@@ -12,6 +12,8 @@ each other in a loop; a private name is one with a single leading underscore
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -315,84 +317,61 @@ def test_the_lab_import_check_can_fail(tmp_path):
 
 # -- the old module paths: each one is its new home, the same module object ----------------
 
-#: Core's flat modules before the wings, each with its home now (docs/architecture.md).
-MOVED = {
-    **dict.fromkeys(
-        [
-            "card",
-            "divergence",
-            "errors",
-            "fields",
-            "hookspecs",
-            "logscan",
-            "options",
-            "precice_xml",
-            "readers",
-            "registration",
-            "sketch",
-            "solver",
-            "watchpoints",
-        ],
-        "plugin",
-    ),
-    "plugins": "plugin.manager",
-    **dict.fromkeys(
-        [
-            "action_shaping",
-            "actions",
-            "config",
-            "core",
-            "coupled_run",
-            "coupling",
-            "default_plugin",
-            "episode",
-            "exit_cleanup",
-            "frames",
-            "guards",
-            "lifecycle",
-            "owner_watchdog",
-            "pidregistry",
-            "precice_library",
-            "processes",
-            "rendering",
-            "returned_values",
-            "rundir",
-            "timed_reader",
-            "values",
-            "vertices",
-        ],
-        "env",
-    ),
-    **dict.fromkeys(
-        [
-            "case_sketch",
-            "clean_command",
-            "cli",
-            "distribution",
-            "install_command",
-            "optional",
-            "precice_install",
-            "prerequisites",
-            "sketch_command",
-            "sketch_drawing",
-            "stack",
-        ],
-        "tools",
-    ),
-    **dict.fromkeys(["rllib", "robustness", "sb3"], "learners"),
-    "telemetry": "vector.telemetry",
-}
+
+def _moved_tables() -> dict[str, str]:
+    from gymprecice.old_paths import MOVED as core_moved
+    from gymprecice_lab.old_paths import MOVED as lab_moved
+
+    return {**core_moved, **lab_moved}
 
 
 def test_every_old_module_path_is_its_new_home():
+    """An old path imports as the module that holds it now, and keeps no file of its own
+    (the folder tree shows the wings alone)."""
     import importlib
 
-    core = ROOT / "packages" / "gymprecice-core" / "src" / "gymprecice"
-    for old, home in MOVED.items():
-        new = home if "." in home else f"{home}.{old}"
-        assert (core / f"{old}.py").is_file() and (core / f"{new.replace('.', '/')}.py").is_file()
-        module = importlib.import_module(f"gymprecice.{new}")
-        assert importlib.import_module(f"gymprecice.{old}") is module, old
+    moved = _moved_tables()
+    assert len(moved) == 98
+    for old, new in moved.items():
+        package, _, name = old.rpartition(".")
+        folder = ROOT / "packages" / f"{package.replace('_', '-')}" / "src" / package
+        if package == "gymprecice":
+            folder = ROOT / "packages" / "gymprecice-core" / "src" / package
+        assert not (folder / f"{name}.py").exists(), old
+        assert (ROOT / "packages").glob(f"*/src/{new.replace('.', '/')}.py"), new
+        module = importlib.import_module(new)
+        assert importlib.import_module(old) is module, old
+        assert module.__spec__.name == new, f"{old} changed {new}'s __spec__"
+        assert module.__name__ == new
+
+
+def test_an_old_path_runs_as_a_command_and_unpickles():
+    """``python -m OLD`` runs the new module as ``__main__`` (the owner's watchdog is
+    started that way), and an object pickled under an old path loads."""
+    import pickle
+
+    code = "import pickle, sys; print(type(pickle.loads(sys.stdin.buffer.read())).__module__)"
+    from gymprecice.plugin.errors import CaseError
+
+    # a pickle written by a version whose CaseError lived in gymprecice.errors
+    payload = pickle.dumps(CaseError("x"), protocol=0).replace(
+        b"gymprecice.plugin.errors", b"gymprecice.errors"
+    )
+    assert b"gymprecice.errors" in payload
+    loaded = subprocess.run(
+        [sys.executable, "-c", code], input=payload, capture_output=True, check=True
+    )
+    assert loaded.stdout.decode().strip() == "gymprecice.plugin.errors"
+    # no descriptor to watch: the new module's main runs, as __main__, and refuses it
+    run = subprocess.run(
+        [sys.executable, "-m", "gymprecice.owner_watchdog", "not-a-descriptor"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert run.returncode != 0
+    assert 'gymprecice/env/owner_watchdog.py", line' in run.stderr, run.stderr
+    assert "in <module>" in run.stderr and "in main" in run.stderr, run.stderr
 
 
 # -- the multi-agent env: composed of the episode runner, no reach into other objects --------

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.core import LIBRARY_ENV_VAR
+from gymprecice.env.core import LIBRARY_ENV_VAR
 from gymprecice.testing.chaos import (
     CylinderEnv,
     ProcessWatcher,

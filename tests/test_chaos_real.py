@@ -96,7 +96,7 @@ def _missing_openfoam() -> list[str]:
 
 
 def _missing_dealii() -> list[str]:
-    from gymprecice.stack import stack_which
+    from gymprecice.tools.stack import stack_which
 
     return _missing_openfoam() + ([] if stack_which("elasticity") else ["the deal.II adapter"])
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from gymprecice import cli, plugins
-from gymprecice.pidregistry import GroupRecord, PidRegistry, process_starttime
+from gymprecice.env.pidregistry import GroupRecord, PidRegistry, process_starttime
 
 pytestmark = pytest.mark.skipif(
     not sys.platform.startswith("linux"), reason="the process checks read /proc"
@@ -31,8 +31,8 @@ _OWNER = """
 import json, os, sys, time
 from pathlib import Path
 from gymprecice import owner_watchdog
-from gymprecice.processes import PidRegistry, SolverProcess
-from gymprecice.solver import LaunchSpec
+from gymprecice.env.processes import PidRegistry, SolverProcess
+from gymprecice.plugin.solver import LaunchSpec
 
 env_dir, kill_watchdog = Path(sys.argv[1]), sys.argv[2] == "1"
 env_dir.mkdir(parents=True, exist_ok=True)

@@ -17,8 +17,8 @@ import sys
 import numpy as np
 import pytest
 
-from gymprecice.core import LIBRARY_ENV_VAR, NonFiniteValueError
-from gymprecice.errors import ConfigError, SolverCrashedError
+from gymprecice.env.core import LIBRARY_ENV_VAR, NonFiniteValueError
+from gymprecice.plugin.errors import ConfigError, SolverCrashedError
 from gymprecice.testing.chaos import CylinderEnv, inject, write_case
 from gymprecice.vector import ResilientVectorEnv
 

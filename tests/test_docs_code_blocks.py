@@ -98,7 +98,7 @@ def test_plain_blocks_run(block: Block, tmp_path: Path, monkeypatch) -> None:
 
 
 def test_readme_plugin_block_is_a_working_plugin(tmp_path: Path) -> None:
-    from gymprecice.plugins import solver_kinds, temporary_plugin
+    from gymprecice.plugin.manager import solver_kinds, temporary_plugin
 
     module = types.ModuleType("my_plugin")
     module.__dict__.update(_run(_only("plugin")))
@@ -171,7 +171,7 @@ class TestPluginGuideConformance(_PrintedPluginConformance):
     context = {"name": "rod", "participant": "Rod"}
 
     def test_its_reader_follows_the_reader_conventions(self, plugin, solver) -> None:
-        from gymprecice.solver import WaitableOutputReader
+        from gymprecice.plugin.solver import WaitableOutputReader
 
         reader = plugin.gymprecice_open_output(solver=solver, name="temperature", options={})
         assert isinstance(reader, WaitableOutputReader)
@@ -203,7 +203,7 @@ class TestPluginGuideConformance(_PrintedPluginConformance):
 def test_readme_plugin_runs_in_an_env_without_a_prepare_hook(tmp_path: Path) -> None:
     """The README's plugin has no prepare hook: core's copy of the case is its preparation."""
     from gymprecice import lifecycle
-    from gymprecice.plugins import temporary_plugin
+    from gymprecice.plugin.manager import temporary_plugin
 
     module = types.ModuleType("my_plugin")
     module.__dict__.update(_run(_only("plugin")))
@@ -219,7 +219,7 @@ def test_readme_plugin_runs_in_an_env_without_a_prepare_hook(tmp_path: Path) -> 
 
 def _jet_geometry_plugin(spec) -> types.ModuleType:
     """Stands in for the OpenFOAM plugin's patch geometry of the fake flow's jets."""
-    from gymprecice.hookspecs import hookimpl
+    from gymprecice.plugin.hookspecs import hookimpl
     from gymprecice_tutorials.cylinder_geometry import patch_geometry
 
     @hookimpl
@@ -234,7 +234,7 @@ def _jet_geometry_plugin(spec) -> types.ModuleType:
 
 def test_readme_jet_env_runs_against_the_double(tmp_path: Path, monkeypatch) -> None:
     """The documented env, unchanged, on the fake cylinder flow (OpenFOAM-format outputs)."""
-    from gymprecice.plugins import temporary_plugin
+    from gymprecice.plugin.manager import temporary_plugin
     from gymprecice_tutorials import fake_flow, recipes
 
     spec = recipes.case_spec("jet_cylinder")

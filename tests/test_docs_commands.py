@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.cli import build_parser
-from gymprecice.distribution import core_version
+from gymprecice.tools.cli import build_parser
+from gymprecice.tools.distribution import core_version
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -130,7 +130,7 @@ def test_the_plugin_output_case_runs_as_printed(tmp_path: Path, monkeypatch) -> 
 
 
 def test_the_swapped_solid_is_one_entry_of_the_configuration(tmp_path: Path) -> None:
-    from gymprecice.config import load_config
+    from gymprecice.env.config import load_config
 
     config = json.loads(_code("compose-watch-json"))
     stand_in = config["physics_simulation_engine"]["solvers"]["solid"]

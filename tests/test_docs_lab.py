@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.card import CardError, EnvCard
+from gymprecice.plugin.card import CardError, EnvCard
 
 ROOT = Path(__file__).resolve().parents[1]
 LAB_PAGE = ROOT / "docs" / "reference" / "lab.md"
@@ -38,7 +38,7 @@ def _table(page: Path) -> list[list[str]]:
 
 
 def _commands() -> set[str]:
-    from gymprecice.cli import build_parser
+    from gymprecice.tools.cli import build_parser
 
     parser = build_parser()
     (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
@@ -74,7 +74,7 @@ def test_the_commands_said_to_read_a_field_exist() -> None:
 def test_the_pages_lab_commands_parse() -> None:
     """Every ``gymprecice`` line of the section parses with the command line, the package it
     installs is the repository's example, and no line needs a flag that does not exist."""
-    from gymprecice.cli import build_parser
+    from gymprecice.tools.cli import build_parser
 
     section = _section(ENV_PAGE, LAB_SECTION)
     (block,) = re.findall(r"```bash\n(.*?)```", section, re.S)

@@ -234,7 +234,7 @@ def test_every_block_is_marked_and_outputs_follow_commands() -> None:
 
 
 def test_the_real_solver_commands_parse() -> None:
-    from gymprecice.cli import build_parser
+    from gymprecice.tools.cli import build_parser
 
     real = [b for b in page_blocks() if b.kind == "real"]
     lines = [ln.split("#", 1)[0].strip() for b in real for ln in b.code.splitlines()]
@@ -256,7 +256,7 @@ def test_a_changed_output_fails() -> None:
 def test_the_edits_apply_to_a_fresh_package(tmp_path: Path) -> None:
     """Every edit of the page applies, once, to what `gymprecice new` writes today, and
     leaves Python that compiles. Cost: about 3 s (`gymprecice new`)."""
-    from gymprecice.cli import main
+    from gymprecice.tools.cli import main
 
     assert main(["new", "my-env", "--dir", str(tmp_path / "my-env")]) == 0
     edits = [b for b in page_blocks() if b.kind == "edit"]

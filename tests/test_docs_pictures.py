@@ -97,7 +97,7 @@ def test_every_case_sketch_on_a_page_is_made_by_the_script_and_named_under_it() 
     """Each tutorial page shows its case's sketch with the `gymprecice sketch` command that
     makes it; scripts/make_docs_pictures.sh makes the same pictures with the same envs, the
     command parses, and each picture is small enough for a page."""
-    from gymprecice.cli import build_parser
+    from gymprecice.tools.cli import build_parser
 
     script = (ROOT / "scripts/make_docs_pictures.sh").read_text()
     made = dict((name, env) for env, name in re.findall(r"^([\w-]+) ([\w-]+)$", script, re.M))

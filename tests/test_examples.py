@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.cli import main
+from gymprecice.tools.cli import main
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 CASES = sorted(p.parent for p in EXAMPLES.glob("*/gymprecice-config.json"))
@@ -103,7 +103,7 @@ def test_python_solver_example_runs_on_real_precice(tmp_path: Path, monkeypatch)
 @pytest.mark.timeout(900)
 def test_openfoam_example_runs_on_real_openfoam_and_precice(tmp_path: Path, monkeypatch) -> None:
     """Cost: about 3 s (blockMesh and a few pimpleFoam windows of the example's small case)."""
-    from gymprecice.errors import CaseError
+    from gymprecice.plugin.errors import CaseError
     from gymprecice_openfoam.installation import find_openfoam
 
     try:

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import gymprecice  # noqa: F401  (registers the tutorial environments)
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.plugin.precice_xml import load_precice_config
 from gymprecice.testing import fake_precice
 from gymprecice_tutorials import fake_flow, recipes
 from gymprecice_tutorials.fast_cases import FAST_REWARD_OFFSET

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import pytest
 
-from gymprecice.stack import stack_which
+from gymprecice.tools.stack import stack_which
 from gymprecice_fenics import solver_env
 from gymprecice_openfoam.testing import missing_coupled_stack
 from gymprecice_tutorials.perpendicular_flap.swing import SOLID_AGREEMENT, uncontrolled_swing

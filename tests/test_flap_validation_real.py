@@ -18,7 +18,7 @@ import sys
 
 import pytest
 
-from gymprecice.stack import stack_which
+from gymprecice.tools.stack import stack_which
 from gymprecice_openfoam.testing import missing_coupled_stack
 from gymprecice_tutorials.perpendicular_flap.tip_figures import PUBLISHED
 

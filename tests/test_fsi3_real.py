@@ -15,7 +15,7 @@ import sys
 
 import pytest
 
-from gymprecice.stack import stack_which
+from gymprecice.tools.stack import stack_which
 from gymprecice_openfoam.installation import find_openfoam
 from gymprecice_openfoam.testing import missing_coupled_stack
 from gymprecice_tutorials.case_files import write_case_files

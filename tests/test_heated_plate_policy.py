@@ -20,8 +20,8 @@ from typing import Any
 
 import pytest
 
-from gymprecice_lab.lab_env import find_lab_env
-from gymprecice_lab.shipped_policies import POLICIES_DIR_ENV, resolve_policy
+from gymprecice_lab.common.registered_env import find_lab_env
+from gymprecice_lab.policies.shipped import POLICIES_DIR_ENV, resolve_policy
 
 
 def _cli(cwd: Path, *args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
@@ -73,8 +73,8 @@ def test_shipped_policy_beats_the_uncontrolled_plate_on_the_double(tmp_path: Pat
 
 def _missing(env: str) -> str:
     """What ``env`` lacks on this machine to run on real solvers, as the commands say it."""
-    from gymprecice.cli import doctor_report
-    from gymprecice_lab.requirements import missing_names, missing_requirements
+    from gymprecice.tools.cli import doctor_report
+    from gymprecice_lab.common.requirements import missing_names, missing_requirements
 
     return missing_names(missing_requirements(doctor_report(), find_lab_env(env)))
 

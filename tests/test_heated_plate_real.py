@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.processes import kill_recorded_groups
+from gymprecice.env.processes import kill_recorded_groups
 from gymprecice_fenics import solver_env
 from gymprecice_openfoam.testing import missing_coupled_stack
 from gymprecice_tutorials.heated_plate.environment import SOLID_AGREEMENT_K, HeatedPlateEnv

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.pidregistry import PidRegistry
+from gymprecice.env.pidregistry import PidRegistry
 from gymprecice.testing.chaos import describe_processes, pid_alive, write_case
 
 pytestmark = pytest.mark.skipif(
@@ -46,8 +46,8 @@ import json, os, sys, threading, time
 from pathlib import Path
 from gymprecice import owner_watchdog
 from gymprecice.env import launching
-from gymprecice.processes import PidRegistry, SolverProcess
-from gymprecice.solver import LaunchSpec
+from gymprecice.env.processes import PidRegistry, SolverProcess
+from gymprecice.plugin.solver import LaunchSpec
 
 env_dir = Path(sys.argv[1])
 env_dir.mkdir(parents=True, exist_ok=True)

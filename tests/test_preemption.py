@@ -236,7 +236,7 @@ def test_sigterm_then_sigkill_2_s_later_and_the_same_command_resumes(tmp_path):
 _KILLED_MID_WRITE = """
 import os, sys
 from pathlib import Path
-from gymprecice_lab.callbacks import save_checkpoint
+from gymprecice_lab.training.callbacks import save_checkpoint
 
 
 def write(path, data, name, killed_in):
@@ -292,7 +292,7 @@ def test_a_checkpoint_saved_over_and_killed_mid_write_stays_whole(tmp_path):
     earlier content, and the temporary files are removed by the next run.
     Cost: 4 to 13 s measured on 2 busy cores (one Python process that imports
     Stable-Baselines3)."""
-    from gymprecice_lab.callbacks import remove_partial_saves
+    from gymprecice_lab.training.callbacks import remove_partial_saves
 
     names = ("sac_8_steps.zip", "sac_replay_buffer_8_steps.pkl", "sac_vecnormalize_8_steps.pkl")
     files = ("stats", "buffer", "zip")
@@ -326,7 +326,7 @@ def test_companions_of_a_checkpoint_never_completed_are_removed(tmp_path):
     """A kill between the renames (or mid-way through pruning) leaves a replay buffer or
     statistics without their zip: hundreds of megabytes nothing reads, removed by the next
     run; a complete checkpoint's are kept. Cost: under 0.1 s."""
-    from gymprecice_lab.callbacks import remove_partial_saves
+    from gymprecice_lab.training.callbacks import remove_partial_saves
 
     for name in (
         "sac_8_steps.zip",
@@ -359,7 +359,7 @@ def test_sigkill_mid_save_leaves_the_previous_checkpoint_whole_and_the_run_resum
     first checkpoint is the newest whole one, taken without a word about a torn file, and
     the same command resumes from it and finishes. Cost: 37 to 74 s measured on 2 busy
     cores (two short SAC runs on the double)."""
-    from gymprecice_lab.envs import newest_checkpoint
+    from gymprecice_lab.common.wrapped_env import newest_checkpoint
 
     argv = [*SAC, "--timesteps", "40", "--checkpoint-every", "8", "--keep-checkpoints", "3"]
     proc = _start(tmp_path, argv, "first.log")

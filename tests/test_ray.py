@@ -165,7 +165,7 @@ def test_sb3_ppo_trains_on_the_ray_backend(chaos):
     pytest.importorskip("stable_baselines3")
     from stable_baselines3 import PPO
 
-    from gymprecice.sb3 import ResilientSubprocVecEnv
+    from gymprecice.learners.sb3 import ResilientSubprocVecEnv
 
     fns = [
         functools.partial(CylinderEnv, str(chaos.case), i, run_root=str(chaos.runs))

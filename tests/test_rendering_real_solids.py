@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.processes import kill_recorded_groups
-from gymprecice.stack import stack_which
+from gymprecice.env.processes import kill_recorded_groups
+from gymprecice.tools.stack import stack_which
 from gymprecice_openfoam.testing import missing_coupled_stack
 
 VARIANCE_FLOOR = 100.0
@@ -72,7 +72,7 @@ def test_the_flap_renders_fluid_and_bent_solid_and_writes_nothing_more_without_r
 ) -> None:
     """Cost: two PerpendicularFlapFast-v0 runs of 0.4 s (0.1 s settling, 3 actions) on real
     pimpleFoam and elasticity, about 30 s on 2 cores."""
-    from gymprecice.solver import SolverContext
+    from gymprecice.plugin.solver import SolverContext
     from gymprecice_dealii.fields import read_vtk
     from gymprecice_dealii.prm import ElasticityParameters
     from gymprecice_openfoam.fields import read_field
@@ -191,7 +191,7 @@ def test_the_fenics_plate_renders_its_temperature_and_writes_nothing_more_withou
     """Cost: two HeatedPlate-v0 runs with the FEniCS plate of 0.2 s (0.1 s settling, one
     action) on real buoyantPimpleFoam and FEniCS, about 2 minutes on 2 cores (the full
     fluid mesh: the training case has no FEniCS plate)."""
-    from gymprecice.fields import FIELDS_DIR, read_field_file
+    from gymprecice.plugin.fields import FIELDS_DIR, read_field_file
     from gymprecice_tutorials.heated_plate.environment import HeatedPlateEnv
 
     short = {"solid": "fenics", "settle_time": 0.1, "episode_time": 0.1}

@@ -36,7 +36,7 @@ pytestmark = [
 import ray  # noqa: E402
 from ray.rllib.algorithms.ppo import PPOConfig  # noqa: E402
 
-from gymprecice.rllib import EnvCreator, register_env  # noqa: E402
+from gymprecice.learners.rllib import EnvCreator, register_env  # noqa: E402
 from gymprecice.testing.chaos import (  # noqa: E402
     CylinderEnv,
     ProcessWatcher,

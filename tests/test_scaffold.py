@@ -18,10 +18,10 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.cli import main
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import temporary_plugin
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import temporary_plugin
 from gymprecice.scaffold import available_kinds, package_files, plan_package
+from gymprecice.tools.cli import main
 
 #: seconds a pip install or a package's own tests may take before the test fails
 COMMAND_TIMEOUT = 480
@@ -69,6 +69,8 @@ def test_the_default_package_is_written_and_its_case_passes_check(tmp_path, caps
         assert path in files, sorted(files)
     pyproject = (target / "pyproject.toml").read_text()
     assert '[project.entry-points.gymprecice]\nmy-env = "my_env.plugin"' in pyproject
+    declared = '[project.entry-points."gymprecice.environments"]\n"my-env/MyEnv-v0" = '
+    assert declared + '"my_env.env:MyEnv"' in pyproject
     assert '"gymprecice-core>=' in pyproject
     env = (target / "src/my_env/env.py").read_text()
     assert "class MyEnv(Adapter):" in env

@@ -27,10 +27,10 @@ import numpy as np
 import pytest
 
 import gymprecice_tutorials
-from gymprecice_lab.manifest import file_sha256
-from gymprecice_lab.policy_format import PolicyError, read_metadata
-from gymprecice_lab.ship_policy import ship_policy
-from gymprecice_lab.shipped_policies import (
+from gymprecice_lab.common.manifest import file_sha256
+from gymprecice_lab.policies.policy import PolicyError, read_metadata
+from gymprecice_lab.policies.ship import ship_policy
+from gymprecice_lab.policies.shipped import (
     POLICIES_DIR_ENV,
     load_shipped,
     resolve_policy,
@@ -78,7 +78,7 @@ def _refused_here(cwd: Path, *args: str, policies: Path | None = None, monkeypat
     """:func:`_fails` for a command refused before it runs anything, run in this process
     (a process of its own would spend seconds importing PyTorch to print one line); the
     exit status a process would have is the one checked."""
-    from gymprecice.cli import main
+    from gymprecice.tools.cli import main
 
     monkeypatch.chdir(cwd)
     monkeypatch.delenv(POLICIES_DIR_ENV, raising=False)
@@ -269,7 +269,7 @@ def test_shipping_keeps_what_evaluation_needs_and_the_record(tiny):
 def test_a_shipped_command_names_no_directory_of_the_training_machine():
     """Absolute paths in a recorded command become relative to where it ran, or their
     last component where they lie elsewhere: a policy ships to other machines."""
-    from gymprecice_lab.ship_policy import _command_line
+    from gymprecice_lab.policies.ship import _command_line
 
     argv = ["/opt/env/bin/gymprecice", "train", "two-flaps-fast", "--out", "/home/u/w/runs/a"]
     assert _command_line(argv, "/home/u/w") == "gymprecice train two-flaps-fast --out runs/a"
@@ -528,7 +528,7 @@ def test_shipped_flap_policy_beats_the_uncontrolled_flap_on_the_real_stack(tmp_p
     Cost: a few minutes on 2 cores: two 1.5 s runs of the three-participant FSI (pimpleFoam,
     elasticity, the controller).
     """
-    from gymprecice.stack import stack_which
+    from gymprecice.tools.stack import stack_which
 
     missing = _missing() + ([] if stack_which("elasticity") else ["the deal.II adapter"])
     if missing:
@@ -587,8 +587,8 @@ def test_the_two_flaps_ship_one_policy_both_flaps_share(monkeypatch, capsys):
     """The two flaps' policy was trained --shared-policy: it takes one flap's row and
     says which agents share it, in the order of the env's card, as `gymprecice policies`
     tells."""
-    from gymprecice.card import card_for
-    from gymprecice.cli import main
+    from gymprecice.plugin.card import card_for
+    from gymprecice.tools.cli import main
 
     monkeypatch.delenv(POLICIES_DIR_ENV, raising=False)
     assert main(["policies"]) == 0
@@ -622,7 +622,7 @@ def test_shipped_two_flaps_policy_beats_the_uncontrolled_flaps_on_the_real_stack
 
     Cost: about a minute on 2 cores: two 3 s episodes of the four-participant FSI.
     """
-    from gymprecice.stack import stack_which
+    from gymprecice.tools.stack import stack_which
 
     missing = _missing() + ([] if stack_which("elasticity") else ["the deal.II adapter"])
     if missing:

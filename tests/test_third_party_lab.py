@@ -123,9 +123,9 @@ def test_the_installed_package_registers_its_env_and_card(rod_python: Path, tmp_
         import warnings
         import gymnasium
         from gymnasium.utils.env_checker import check_env
-        from gymprecice.card import card_for, find_env
-        from gymprecice.cli import main
-        from gymprecice.registration import registered_environments
+        from gymprecice.plugin.card import card_for, find_env
+        from gymprecice.tools.cli import main
+        from gymprecice.plugin.registration import registered_environments
         from gymprecice_heated_rod.env import CASE_DIR
 
         assert registered_environments()[{ENV_ID!r}] == "heated-rod", registered_environments()
@@ -300,11 +300,11 @@ _BAD_PLUGIN = """
 import sys
 import warnings
 
-from gymprecice.card import CardError, EnvCard, card_for
-from gymprecice.cli import main
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import PluginWarning, register_plugin
-from gymprecice.registration import register_environments
+from gymprecice.plugin.card import CardError, EnvCard, card_for
+from gymprecice.tools.cli import main
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import PluginWarning, register_plugin
+from gymprecice.plugin.registration import register_environments
 
 FORM = sys.argv[1]
 

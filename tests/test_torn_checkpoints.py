@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice_lab.envs import newest_checkpoint
+from gymprecice_lab.common.wrapped_env import newest_checkpoint
 
 
 def _checkpoint(directory: Path, steps: int, *, buffer: bool = True, stats: bool = True) -> Path:

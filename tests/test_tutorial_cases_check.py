@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import gymprecice_tutorials
-from gymprecice.cli import main
+from gymprecice.tools.cli import main
 
 PACKAGE = Path(gymprecice_tutorials.__file__).resolve().parent
 CASES = sorted(p.parent for p in PACKAGE.rglob("gymprecice-config.json"))

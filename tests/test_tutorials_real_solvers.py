@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gymprecice.processes import kill_recorded_groups
-from gymprecice.stack import stack_which
+from gymprecice.env.processes import kill_recorded_groups
+from gymprecice.tools.stack import stack_which
 from gymprecice_openfoam.testing import missing_coupled_stack
 
 _MISSING = missing_coupled_stack("pimpleFoam")
@@ -152,7 +152,7 @@ def test_killing_one_of_three_participants_leaves_nothing_of_the_other_behind(
     Cost: about 4 CPU-s per victim (PerpendicularFlapFast-v0: 0.2 s settling, a step, the kill, a
     new episode's first step).
     """
-    from gymprecice.errors import CouplingError, SolverError
+    from gymprecice.plugin.errors import CouplingError, SolverError
     from gymprecice_tutorials.perpendicular_flap.fast import PerpendicularFlapFastEnv
 
     env = PerpendicularFlapFastEnv(run_root=tmp_path, settle_time=0.2, episode_time=0.5)

@@ -22,9 +22,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.errors import ConfigError
-from gymprecice.processes import PidRegistry
-from gymprecice.telemetry import Telemetry
+from gymprecice.env.processes import PidRegistry
+from gymprecice.plugin.errors import ConfigError
 from gymprecice.vector import (
     EnvFailure,
     EnvPool,
@@ -32,6 +31,7 @@ from gymprecice.vector import (
     ResilientVectorEnv,
     describe_exception,
 )
+from gymprecice.vector.telemetry import Telemetry
 
 # The envs below are defined here; workers get them by value.
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -522,7 +522,7 @@ def test_telemetry_collects_per_step_timings_and_failures(make_vec, tmp_path):
 
 @pytest.mark.parametrize("as_timing", [False, True], ids=["dict", "Timing"])
 def test_telemetry_prefers_the_adapter_timing(as_timing):
-    from gymprecice.core import Timing
+    from gymprecice.env.core import Timing
 
     telemetry = Telemetry(num_envs=1)
     seconds = {"wait_s": 0.5, "env_s": 0.1, "precice_s": 0.45}
@@ -544,7 +544,7 @@ sb3 = pytest.importorskip("stable_baselines3")
 def test_sb3_facade_follows_subprocvecenv_conventions(make_vec, tmp_path):
     from stable_baselines3.common.monitor import Monitor
 
-    from gymprecice.sb3 import ResilientSubprocVecEnv
+    from gymprecice.learners.sb3 import ResilientSubprocVecEnv
 
     venv = make_vec(fns(2, tmp_path, {1: "raise"}), cls=ResilientSubprocVecEnv)
     venv.seed(11)
@@ -580,7 +580,7 @@ def test_sb3_facade_follows_subprocvecenv_conventions(make_vec, tmp_path):
 def test_a_worker_dying_in_a_call_is_respawned_and_its_episode_ends_at_the_next_step(
     make_vec, tmp_path
 ):
-    from gymprecice.sb3 import ResilientSubprocVecEnv
+    from gymprecice.learners.sb3 import ResilientSubprocVecEnv
 
     venv = make_vec(fns(2, tmp_path), cls=ResilientSubprocVecEnv)
     venv.reset()
@@ -597,7 +597,7 @@ def test_a_worker_dying_in_a_call_is_respawned_and_its_episode_ends_at_the_next_
 
 
 def test_sb3_env_is_wrapped_matches_wrappers_and_their_bases(make_vec, tmp_path):
-    from gymprecice.sb3 import ResilientSubprocVecEnv
+    from gymprecice.learners.sb3 import ResilientSubprocVecEnv
 
     venv = make_vec([functools.partial(time_limited, 0)], cls=ResilientSubprocVecEnv)
     assert venv.env_is_wrapped(gym.wrappers.TimeLimit) == [True]
@@ -609,7 +609,7 @@ def test_sb3_ppo_trains_through_failures_and_logs_telemetry(tmp_path, capsys):
     from stable_baselines3 import PPO
     from stable_baselines3.common.logger import configure
 
-    from gymprecice.sb3 import ResilientSubprocVecEnv, TelemetryCallback
+    from gymprecice.learners.sb3 import ResilientSubprocVecEnv, TelemetryCallback
 
     venv = ResilientSubprocVecEnv(
         fns(2, tmp_path, {0: "kill", 1: "raise"}, at=3),
@@ -629,7 +629,7 @@ def test_sb3_ppo_trains_through_failures_and_logs_telemetry(tmp_path, capsys):
 
 
 def test_telemetry_summary_table_is_aligned():
-    from gymprecice.telemetry import SERIES
+    from gymprecice.vector.telemetry import SERIES
 
     telemetry = Telemetry(num_envs=1)
     for name in SERIES:

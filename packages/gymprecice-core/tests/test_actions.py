@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gymprecice.actions import ActionSchedule
+from gymprecice.env.actions import ActionSchedule
 
 
 def test_hold_repeats_the_action() -> None:
@@ -59,7 +59,7 @@ def test_vector_actions_and_validation() -> None:
 def test_the_configuration_accepts_exactly_the_schemes() -> None:
     from typing import get_args
 
-    from gymprecice.actions import SCHEMES
-    from gymprecice.config import ActionsSection
+    from gymprecice.env.actions import SCHEMES
+    from gymprecice.env.config import ActionsSection
 
     assert get_args(ActionsSection.model_fields["scheme"].annotation) == SCHEMES

@@ -11,8 +11,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.core import Adapter
-from gymprecice.errors import ConfigError, SolverCrashedError, SolverTimeoutError
+from gymprecice.env.core import Adapter
+from gymprecice.plugin.errors import ConfigError, SolverCrashedError, SolverTimeoutError
 
 STUBS = Path(__file__).parent / "stubs"
 TICKER = "import time\nfor i in range(100000):\n    print('step', i, flush=True); time.sleep(0.05)"
@@ -207,7 +207,7 @@ def test_interfaces_without_vertices_say_how_to_set_them(make_case, base_config,
 
 
 def test_missing_pyprecice_says_what_to_install(make_case, base_config, tmp_path, monkeypatch):
-    from gymprecice.errors import PreciceNotInstalledError
+    from gymprecice.plugin.errors import PreciceNotInstalledError
 
     monkeypatch.setenv("GYMPRECICE_PRECICE_LIBRARY", "precice_that_is_not_installed")
     case = _case(make_case, base_config, tmp_path)
@@ -229,8 +229,8 @@ def test_seeding_is_reproducible(make_case, base_config, tmp_path):
 
 
 def test_open_output_gives_one_reader_per_episode_and_closes_it(make_case, base_config, tmp_path):
-    from gymprecice.hookspecs import hookimpl
-    from gymprecice.plugins import temporary_plugin
+    from gymprecice.plugin.hookspecs import hookimpl
+    from gymprecice.plugin.manager import temporary_plugin
 
     class Reader:
         closed = False
@@ -265,7 +265,7 @@ def test_waiting_for_solver_output_is_timed_as_solver_time() -> None:
     """Readers from open_output report their waits, which steps count as wait_s."""
     import time as _time
 
-    from gymprecice.timed_reader import TimedReader
+    from gymprecice.env.timed_reader import TimedReader
 
     class Reader:
         start_time = 8.0
@@ -293,8 +293,8 @@ def test_a_solver_that_dies_while_its_output_is_awaited_ends_the_wait_at_once() 
     reader's own timeout error comes at its timeout."""
     import time as _time
 
-    from gymprecice.errors import SolverCrashedError
-    from gymprecice.timed_reader import OUTPUT_WAIT_SLICE_S, TimedReader
+    from gymprecice.env.timed_reader import OUTPUT_WAIT_SLICE_S, TimedReader
+    from gymprecice.plugin.errors import SolverCrashedError
 
     class NeverReady:
         def wait_until(self, t: float, timeout: float) -> str:
@@ -326,7 +326,7 @@ def test_of_two_dead_solvers_the_cause_is_named_not_the_partner_precice_aborted(
     env looks at both dead, the solid is the culprit."""
     import signal
 
-    from gymprecice.coupling import PARTNER_LOST, _culprit_first
+    from gymprecice.env.coupling import PARTNER_LOST, _culprit_first
 
     class Dead:
         def __init__(self, name: str, status: int, log: str) -> None:
@@ -348,7 +348,7 @@ def test_of_two_dead_solvers_the_cause_is_named_not_the_partner_precice_aborted(
 
 def test_info_time_is_shown_to_the_time_window_s_precision() -> None:
     """info["time"] shows 2.0, not 2.0000000000000013 (adding windows leaves noise)."""
-    from gymprecice.episode import shown_time
+    from gymprecice.env.episode import shown_time
 
     noisy = sum([0.01] * 200)
     assert noisy != 2.0 and shown_time(noisy, 0.01) == 2.0

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.core import Adapter
+from gymprecice.env.core import Adapter
 
 STUBS = Path(__file__).parent / "stubs"
 TICKER = "import time\nfor i in range(100000):\n    print('step', i, flush=True); time.sleep(0.05)"

@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 
 from gymprecice import __version__, plugins
-from gymprecice.cli import main
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import DISABLE_ENV_VAR, PluginWarning, temporary_plugin
-from gymprecice.solver import DoctorCheck
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import DISABLE_ENV_VAR, PluginWarning, temporary_plugin
+from gymprecice.plugin.solver import DoctorCheck
+from gymprecice.tools.cli import main
 
 
 @pytest.fixture(autouse=True)
@@ -127,7 +127,7 @@ def test_check_shows_the_import_error_of_a_broken_plugin(
     capsys, tmp_path, make_case, base_config, monkeypatch
 ) -> None:
     from gymprecice import cli
-    from gymprecice.plugins import PluginFailure
+    from gymprecice.plugin.manager import PluginFailure
 
     broken = PluginFailure("rod", "gymprecice-rod", "0.1", "cannot import 'rod': SyntaxError")
     monkeypatch.setattr(cli, "plugin_failures", lambda: [broken])

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.config import SolverSpec, check_solver_kinds, load_config
-from gymprecice.errors import ConfigError
+from gymprecice.env.config import SolverSpec, check_solver_kinds, load_config
+from gymprecice.plugin.errors import ConfigError
 
 
 def _write(case: Path, config: dict) -> Path:
@@ -181,8 +181,8 @@ def test_misspelled_core_option_fails_at_load_naming_the_file(case_dir: Path) ->
 
 
 def test_a_problem_against_the_precice_file_says_so(case_dir: Path) -> None:
-    from gymprecice.hookspecs import hookimpl
-    from gymprecice.plugins import temporary_plugin
+    from gymprecice.plugin.hookspecs import hookimpl
+    from gymprecice.plugin.manager import temporary_plugin
 
     class MeshNames:
         @hookimpl
@@ -199,7 +199,7 @@ def test_a_problem_against_the_precice_file_says_so(case_dir: Path) -> None:
 
 def test_a_kind_of_a_plugin_that_failed_to_load_shows_its_import_error(case_dir: Path) -> None:
     """Installed but broken is not missing: `pip install` would change nothing."""
-    from gymprecice.plugins import PluginFailure
+    from gymprecice.plugin.manager import PluginFailure
 
     cfg = load_config(case_dir)
     cfg.solvers["fluid"].kind = "rod"

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.errors import CaseError
-from gymprecice.hookspecs import LaunchSpec, hookimpl
-from gymprecice.plugins import GymPrecicePluginManager
+from gymprecice.plugin.errors import CaseError
+from gymprecice.plugin.hookspecs import LaunchSpec, hookimpl
+from gymprecice.plugin.manager import GymPrecicePluginManager
 from gymprecice.testing import conformance
 from gymprecice.testing.conformance import (
     ConformanceError,

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from gymprecice import default_plugin
-from gymprecice.errors import CaseError, ConfigError, SolverCrashedError, SolverTimeoutError
-from gymprecice.processes import run_to_completion
-from gymprecice.solver import LaunchSpec, SolverContext
+from gymprecice.env.processes import run_to_completion
+from gymprecice.plugin.errors import CaseError, ConfigError, SolverCrashedError, SolverTimeoutError
+from gymprecice.plugin.solver import LaunchSpec, SolverContext
 from gymprecice.testing.conformance import SolverPluginConformance, make_solver_context
 
 PRERUN = """#!/bin/sh
@@ -394,8 +394,8 @@ def broken_case(tmp_path, make_case, base_config):
 def test_check_refuses_what_reset_would_with_the_same_message(
     broken_case, capsys, kind, options, prepare, shown
 ):
-    from gymprecice.cli import main
-    from gymprecice.config import load_config
+    from gymprecice.env.config import load_config
+    from gymprecice.tools.cli import main
 
     case = broken_case(kind, options)
     if prepare:
@@ -424,7 +424,7 @@ def test_check_refuses_what_reset_would_with_the_same_message(
 
 
 def test_check_accepts_a_case_that_launches(broken_case, capsys):
-    from gymprecice.cli import main
+    from gymprecice.tools.cli import main
 
     case = broken_case("command", {"argv": ["{python}", "solver.py"]})
     (case / "fluid" / "solver.py").write_text("print('hi')\n")
@@ -448,8 +448,8 @@ def _solid(base: Path, kind: str = "command", **fields) -> SolverContext:
 @pytest.mark.parametrize("kind", ["command", "script", "openfoam", "dealii"])
 def test_core_opens_a_participants_watch_point_whatever_its_kind(tmp_path: Path, kind) -> None:
     """Issue 40, bug 1: preCICE writes the log, so no solver plugin is needed to read it."""
-    from gymprecice.plugins import get_plugin_manager
-    from gymprecice.watchpoints import WatchPointLog
+    from gymprecice.plugin.manager import get_plugin_manager
+    from gymprecice.plugin.watchpoints import WatchPointLog
 
     solver = _solid(tmp_path, kind)
     reader = get_plugin_manager().hook.gymprecice_open_output(

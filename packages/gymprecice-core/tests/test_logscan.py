@@ -10,10 +10,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.core import Adapter
-from gymprecice.errors import SolverCrashedError
-from gymprecice.logscan import error_lines
-from gymprecice.processes import read_tail
+from gymprecice.env.core import Adapter
+from gymprecice.env.processes import read_tail
+from gymprecice.plugin.errors import SolverCrashedError
+from gymprecice.plugin.logscan import error_lines
 
 STUBS = Path(__file__).parent / "stubs"
 #: what preCICE 3's default formatter prints for an error (colours included)
@@ -109,8 +109,8 @@ def test_a_solver_abort_shows_its_error_line_not_only_the_backtrace(
 
 def test_a_crash_report_s_log_tail_has_no_colour_codes(tmp_path) -> None:
     """preCICE colours its log levels: a tail shown to a person must not carry the codes."""
-    from gymprecice.errors import SolverCrashedError
-    from gymprecice.logscan import without_colours
+    from gymprecice.plugin.errors import SolverCrashedError
+    from gymprecice.plugin.logscan import without_colours
 
     tail = "---[precice] \x1b[31mERROR:\x1b[0m the partner is gone\n\x1b[1;33mwarning\x1b[0m\n"
     error = SolverCrashedError("solver 'fluid' exited", solver="fluid", log_tail=tail)

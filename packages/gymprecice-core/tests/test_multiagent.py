@@ -22,9 +22,9 @@ pytest.importorskip("pettingzoo")
 from pettingzoo.test import parallel_api_test, parallel_seed_test, seed_test
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from gymprecice.core import LIBRARY_ENV_VAR
-from gymprecice.errors import ConfigError, SolverError
+from gymprecice.env.core import LIBRARY_ENV_VAR
 from gymprecice.multiagent import JointEnv, MultiAgentAdapter
+from gymprecice.plugin.errors import ConfigError, SolverError
 from gymprecice.testing.chaos import inject, pid_alive, write_case
 from gymprecice.testing.two_jets import TwoJetsEnv
 
@@ -239,8 +239,8 @@ def test_a_solver_killed_mid_episode_is_reported_and_reset_recovers(case, tmp_pa
 @pytest.mark.slow  # worker processes (forkserver), or torch and PPO
 def test_a_solver_killed_in_a_vector_env_costs_one_failure_and_the_run_goes_on(case, tmp_path):
     pytest.importorskip("stable_baselines3")
+    from gymprecice.learners.sb3 import ResilientSubprocVecEnv
     from gymprecice.multiagent.sb3 import SharedPolicyVecEnv
-    from gymprecice.sb3 import ResilientSubprocVecEnv
 
     inject(tmp_path / "faults", 1, "run", "kill", window=3)
     fns = [functools.partial(_joint, str(case), i) for i in range(2)]

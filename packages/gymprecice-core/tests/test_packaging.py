@@ -17,10 +17,10 @@ from pathlib import Path
 import pytest
 
 from gymprecice import optional, plugins
-from gymprecice.cli import main
-from gymprecice.distribution import CLASH_FIX, name_clash
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import DISABLE_ENV_VAR, temporary_plugin
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import DISABLE_ENV_VAR, temporary_plugin
+from gymprecice.tools.cli import main
+from gymprecice.tools.distribution import CLASH_FIX, name_clash
 
 
 @pytest.fixture(autouse=True)

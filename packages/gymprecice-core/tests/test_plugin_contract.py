@@ -13,8 +13,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.core import Adapter
-from gymprecice.errors import SolverCrashedError
+from gymprecice.env.core import Adapter
+from gymprecice.plugin.errors import SolverCrashedError
 from gymprecice.testing import case_config
 from gymprecice.testing.flows import place_jets
 
@@ -109,7 +109,7 @@ def test_a_waiting_solvers_problem_names_the_solver_once(tmp_path: Path) -> None
 
 def test_a_plugin_message_that_names_the_solver_is_not_named_twice() -> None:
     """Plugins written when the spec's example began with ``solver.describe()`` still read well."""
-    from gymprecice.guards import without_label
+    from gymprecice.env.guards import without_label
 
     label = "solver 'rod' (mysolver) of env 0"
     assert without_label(f"{label}: adapter not loaded", label) == "adapter not loaded"
@@ -141,7 +141,7 @@ def test_a_solver_on_real_precice_next_to_the_double_is_reported_at_reset(tmp_pa
 
 
 def test_a_solver_on_the_double_next_to_real_precice_is_named_too() -> None:
-    from gymprecice.precice_library import library_in_log, mixed_library_problem
+    from gymprecice.env.precice_library import library_in_log, mixed_library_problem
 
     double_log = "---[precice]  This is preCICE version 3.4.1 (gymprecice fake_precice)\n"
     assert library_in_log(double_log).double
@@ -198,9 +198,9 @@ def test_the_last_steps_wait_for_the_solvers_to_exit_counts_as_waiting(tmp_path:
 
 
 def test_readers_follow_the_conventions_or_say_which_is_missing(tmp_path: Path) -> None:
-    from gymprecice.solver import OutputReader, WaitableOutputReader
-    from gymprecice.timed_reader import TimedReader
-    from gymprecice.watchpoints import WatchPointLog
+    from gymprecice.env.timed_reader import TimedReader
+    from gymprecice.plugin.solver import OutputReader, WaitableOutputReader
+    from gymprecice.plugin.watchpoints import WatchPointLog
 
     log = WatchPointLog(tmp_path / "precice-Solid-watchpoint-Tip.log")
     assert isinstance(log, WaitableOutputReader) and log.start_time == 0.0

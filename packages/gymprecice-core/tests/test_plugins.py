@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from gymprecice import default_plugin, plugins, registration
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import (
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import (
     DISABLE_ENV_VAR,
     PluginWarning,
     get_plugin_manager,
@@ -29,7 +29,7 @@ from gymprecice.plugins import (
     temporary_plugin,
     unregister_plugin,
 )
-from gymprecice.solver import DoctorCheck, InterfaceGeometry, LaunchSpec, SolverContext
+from gymprecice.plugin.solver import DoctorCheck, InterfaceGeometry, LaunchSpec, SolverContext
 
 # -- helpers ------------------------------------------------------------------------------------
 
@@ -52,13 +52,18 @@ def distribution(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
         entry_points: dict[str, str],
         modules: dict[str, str],
         version: str = "1.2.3",
+        environments: dict[str, str] | None = None,
     ) -> Path:
         root = tmp_path / f"site-{uuid.uuid4().hex[:8]}"
         info = root / f"{dist.replace('-', '_')}-{version}.dist-info"
         info.mkdir(parents=True)
         (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: {version}\n")
         lines = "".join(f"{name} = {target}\n" for name, target in entry_points.items())
-        (info / "entry_points.txt").write_text(f"[gymprecice]\n{lines}")
+        text = f"[gymprecice]\n{lines}"
+        if environments:  # ids declared in the metadata
+            text += "\n[gymprecice.environments]\n"
+            text += "".join(f"{env_id} = {target}\n" for env_id, target in environments.items())
+        (info / "entry_points.txt").write_text(text)
         for module, source in modules.items():
             (root / f"{module}.py").write_text(textwrap.dedent(source))
             created.append(module)
@@ -75,7 +80,7 @@ def _unique(prefix: str) -> str:
 
 
 TOY_PLUGIN = """
-from gymprecice.hookspecs import hookimpl
+from gymprecice.plugin.hookspecs import hookimpl
 
 @hookimpl
 def gymprecice_solver_kinds():
@@ -261,7 +266,7 @@ def test_broken_plugin_is_warned_about_and_skipped(fresh, distribution) -> None:
 def test_plugin_failing_validation_leaves_no_trace(fresh, distribution) -> None:
     module = _unique("invalid_plugin")
     source = """
-    from gymprecice.hookspecs import hookimpl
+    from gymprecice.plugin.hookspecs import hookimpl
 
     @hookimpl
     def gymprecice_launch_solver(solver, not_an_argument):
@@ -482,11 +487,13 @@ class Env(gymnasium.Env):
 """
 
 
-def _run_with(root: Path, code: str) -> dict:
+def _run_with(root: Path, code: str, disable: str | None = None) -> dict:
     """``code`` in a fresh interpreter with the distribution at ``root`` installed and
-    every plugin enabled; the JSON of its last line."""
+    every plugin enabled (but ``disable``); the JSON of its last line."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), *sys.path]))
     env.pop(DISABLE_ENV_VAR, None)
+    if disable is not None:
+        env[DISABLE_ENV_VAR] = disable
     proc = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
     )
@@ -519,7 +526,7 @@ def test_import_gymprecice_registers_lazily_and_survives_a_broken_plugin(distrib
         {"envs": plugin, "bad": bad},
         {
             plugin: f"""
-            from gymprecice.hookspecs import hookimpl
+            from gymprecice.plugin.hookspecs import hookimpl
 
             @hookimpl
             def gymprecice_register_environments(register):
@@ -546,7 +553,7 @@ def test_import_gymprecice_registers_nothing_twice() -> None:
 FIRST_IMPORT_CHECK = """
 import json
 import {plugin}  # the plugin module first: it imports gymprecice at its top
-from gymprecice.plugins import solver_kinds
+from gymprecice.plugin.manager import solver_kinds
 kinds = solver_kinds()
 import gymnasium
 env = gymnasium.make("{env_id}")
@@ -582,3 +589,60 @@ def test_a_plugin_module_imported_before_gymprecice_keeps_its_hooks(distribution
     result = _run_with(root, FIRST_IMPORT_CHECK.format(plugin=plugin, env_id=env_id))
     assert "early-kind" in result["kinds"]
     assert result["obs"] == [0.5]
+
+
+DECLARED_CHECK = """
+import json
+import gymnasium
+# the user's own registration of a declared id, before gymprecice: it stays
+gymnasium.register("{user_id}", entry_point="{impl}:Env", max_episode_steps=3)
+import {plugin}  # the plugin module first: it imports gymprecice at its top
+known = {{i: gymnasium.spec(i).max_episode_steps for i in ("{env_id}", "{user_id}")}}
+obs = gymnasium.make("{env_id}").reset(seed=0)[0].tolist()
+from gymprecice.plugin.manager import get_plugin_manager
+get_plugin_manager()  # the next use: the hook registers its ids, with their kwargs
+after = {{i: gymnasium.spec(i).max_episode_steps for i in ("{env_id}", "{user_id}")}}
+print(json.dumps({{"known": known, "obs": obs, "after": after}}))
+"""
+
+DISABLED_CHECK = """
+import json, gymnasium, gymprecice
+print(json.dumps({{"known": "{env_id}" in gymnasium.registry}}))
+"""
+
+
+def test_ids_declared_in_metadata_are_known_before_the_plugin_module_has_loaded(
+    distribution,
+) -> None:
+    """A distribution's ``gymprecice.environments`` entry points register its ids from the
+    metadata, on ``import gymprecice``: ``gymnasium.make`` works even while the plugin
+    module imported first is still half imported. Its hook's registration then takes the
+    declared one's place; a user's own registration stays; a disabled plugin's ids are not
+    registered."""
+    plugin, impl = _unique("declared_plugin"), _unique("declared_impl")
+    env_id = f"declared/Declared{uuid.uuid4().hex[:6]}-v0"
+    user_id = f"declared/Users{uuid.uuid4().hex[:6]}-v0"
+    root = distribution(
+        "declared-dist",
+        {"declared": plugin},
+        {
+            plugin: f"""
+            from gymprecice.plugin import hookimpl
+
+            @hookimpl
+            def gymprecice_register_environments(register):
+                register("{env_id}", entry_point="{impl}:Env", max_episode_steps=9)
+                register("{user_id}", entry_point="{impl}:Env", max_episode_steps=9)
+            """,
+            impl: ONE_NUMBER_ENV,
+        },
+        environments={env_id: f"{impl}:Env", user_id: f"{impl}:Env"},
+    )
+    result = _run_with(
+        root, DECLARED_CHECK.format(plugin=plugin, impl=impl, env_id=env_id, user_id=user_id)
+    )
+    assert result["known"] == {env_id: None, user_id: 3}
+    assert result["obs"] == [0.5]
+    assert result["after"] == {env_id: 9, user_id: 3}
+    for disable in ("declared", "declared-dist", "1"):
+        assert _run_with(root, DISABLED_CHECK.format(env_id=env_id), disable) == {"known": False}

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.errors import ConfigError
-from gymprecice.precice_xml import load_precice_config, write_with_exchange_directory
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.precice_xml import load_precice_config, write_with_exchange_directory
 
 
 def test_reads_prefixed_tags_meshes_data_and_scheme(case_dir: Path) -> None:

@@ -19,8 +19,7 @@ from pathlib import Path
 import pytest
 
 from gymprecice.env import launching
-from gymprecice.errors import CaseError, SolverCrashedError, SolverTimeoutError
-from gymprecice.processes import (
+from gymprecice.env.processes import (
     PROCESS_TOKEN_VARIABLE,
     PidRegistry,
     SolverProcess,
@@ -29,7 +28,8 @@ from gymprecice.processes import (
     read_tail,
     run_to_completion,
 )
-from gymprecice.solver import LaunchSpec
+from gymprecice.plugin.errors import CaseError, SolverCrashedError, SolverTimeoutError
+from gymprecice.plugin.solver import LaunchSpec
 
 pytestmark = pytest.mark.skipif(
     not Path("/proc/self/stat").exists(), reason="these checks read /proc (Linux)"
@@ -260,7 +260,7 @@ def test_terminate_after_exit_kills_leftover_background_processes(tmp_path):
 
 def test_bare_add_records_the_leaders_start_time(tmp_path):
     """A record that proves nothing is never signalled, so add(pid) proves it at once."""
-    from gymprecice.pidregistry import process_starttime
+    from gymprecice.env.pidregistry import process_starttime
 
     registry = PidRegistry(tmp_path)
     registry.add(os.getpid())
@@ -310,8 +310,8 @@ _DYING_ENV = textwrap.dedent(
     from pathlib import Path
     from gymprecice import owner_watchdog
     from gymprecice.env import launching
-    from gymprecice.processes import PidRegistry, SolverProcess
-    from gymprecice.solver import LaunchSpec
+    from gymprecice.env.processes import PidRegistry, SolverProcess
+    from gymprecice.plugin.solver import LaunchSpec
 
     # The layers that end the solvers with their owner (PR_SET_PDEATHSIG, the watchdog)
     # fail here, so that what is left is the outer supervisor's to kill.
@@ -519,8 +519,8 @@ _MPI_ENV_PROBE = textwrap.dedent(
     """
     import json, os, subprocess, sys
     from pathlib import Path
-    from gymprecice.processes import SolverProcess
-    from gymprecice.solver import LaunchSpec
+    from gymprecice.env.processes import SolverProcess
+    from gymprecice.plugin.solver import LaunchSpec
 
     run_dir = Path(sys.argv[1])
     # No --allow-run-as-root and no --oversubscribe: the user's variables must carry them.

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gymprecice.readers import rows_through
+from gymprecice.plugin.readers import rows_through
 
 
 def test_the_step_ends_with_the_row_at_its_time() -> None:

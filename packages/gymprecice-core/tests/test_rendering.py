@@ -15,12 +15,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.core import Adapter
-from gymprecice.errors import ConfigError, SolverCrashedError
-from gymprecice.fields import Field, Overlay, grid_points, read_field_file, write_field_file
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import temporary_plugin
-from gymprecice.rendering import FrameRenderer, hole_mask
+from gymprecice.env.core import Adapter
+from gymprecice.env.rendering import FrameRenderer, hole_mask
+from gymprecice.plugin.errors import ConfigError, SolverCrashedError
+from gymprecice.plugin.fields import Field, Overlay, grid_points, read_field_file, write_field_file
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import temporary_plugin
 from gymprecice.testing import case_config
 from gymprecice.testing.flows import place_jets
 
@@ -182,7 +182,7 @@ def test_a_plugin_without_the_field_hook_is_named(tmp_path):
         def gymprecice_launch_solver(self, solver):
             if solver.kind != "silent":
                 return None
-            from gymprecice.solver import LaunchSpec
+            from gymprecice.plugin.solver import LaunchSpec
             from gymprecice.testing import partner
 
             argv = partner.command(solver.precice_config_file, "Fluid", library=DOUBLE)
@@ -208,8 +208,8 @@ def test_a_frame_missing_after_the_last_step_is_an_error_at_once_not_a_wait(tmp_
     """After the truncating step the solvers have exited: a frame not written by then never
     will be. render() looks once and names it, where it used to wait the progress timeout
     and then blame a hung solver."""
-    from gymprecice.errors import SolverError, SolverTimeoutError
-    from gymprecice.solver import LaunchSpec
+    from gymprecice.plugin.errors import SolverError, SolverTimeoutError
+    from gymprecice.plugin.solver import LaunchSpec
     from gymprecice.testing import partner
 
     points, triangles = grid_points([0.0, 1.0], [0.0, 1.0])
@@ -418,7 +418,7 @@ def test_the_joint_env_records_a_video_of_the_multi_agent_frame(tmp_path):
 
 
 def test_the_same_quantity_of_two_solvers_is_one_layer_with_one_colour_bar():
-    from gymprecice.frames import shared_layers
+    from gymprecice.env.frames import shared_layers
 
     points, triangles = grid_points([0.0, 0.1], [0.0, 0.5, 1.0])
     moved = np.tile([0.01, 0.0], (len(points), 1))

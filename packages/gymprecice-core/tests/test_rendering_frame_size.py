@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gymprecice.fields import Field, grid_points
-from gymprecice.rendering import MAX_HEIGHT, MIN_HEIGHT, SIZE_STEP, FrameRenderer, frame_height
+from gymprecice.env.rendering import MAX_HEIGHT, MIN_HEIGHT, SIZE_STEP, FrameRenderer, frame_height
+from gymprecice.plugin.fields import Field, grid_points
 
 #: a pixel of the field's colour map differs from the white around the axes by this much
 WHITE = 250

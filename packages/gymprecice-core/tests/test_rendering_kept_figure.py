@@ -13,8 +13,8 @@ import copy
 import numpy as np
 import pytest
 
-from gymprecice.fields import Field, Overlay, grid_points
-from gymprecice.rendering import FrameRenderer, hole_mask
+from gymprecice.env.rendering import FrameRenderer, hole_mask
+from gymprecice.plugin.fields import Field, Overlay, grid_points
 
 VARIANCE_FLOOR = 100.0
 

@@ -6,14 +6,14 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.errors import ConfigError
-from gymprecice.robustness import (
+from gymprecice.learners.robustness import (
     ActuationDelay,
     ObservationDropout,
     SensorNoise,
     parse_wrap_option,
     wrap,
 )
+from gymprecice.plugin.errors import ConfigError
 
 
 class Echo(gym.Env):

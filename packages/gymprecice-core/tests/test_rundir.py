@@ -4,10 +4,10 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.config import load_config
-from gymprecice.errors import ConfigError
-from gymprecice.precice_xml import load_precice_config
-from gymprecice.rundir import create_run_directory
+from gymprecice.env.config import load_config
+from gymprecice.env.rundir import create_run_directory
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.precice_xml import load_precice_config
 
 
 def test_each_env_gets_real_copies_and_its_own_exchange_dir(case_dir: Path, tmp_path: Path) -> None:

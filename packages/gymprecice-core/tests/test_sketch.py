@@ -17,12 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.case_sketch import CaseSketch, DrawnPatch, sketch_case
-from gymprecice.cli import main
-from gymprecice.config import load_config
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import temporary_plugin
-from gymprecice.sketch import SketchPatch, SketchPoints, SolverSketch
+from gymprecice.env.config import load_config
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import temporary_plugin
+from gymprecice.plugin.sketch import SketchPatch, SketchPoints, SolverSketch
+from gymprecice.tools.case_sketch import CaseSketch, DrawnPatch, sketch_case
+from gymprecice.tools.cli import main
 
 pytest.importorskip("matplotlib", reason="the render extra: gymprecice-core[render]")
 
@@ -139,7 +139,7 @@ def test_a_plugin_sketch_is_checked() -> None:
 def test_the_picture_holds_every_patch_and_an_enlarged_panel(toy, case_dir, tmp_path) -> None:
     import imageio.v2 as imageio
 
-    from gymprecice.sketch_drawing import detail_box, draw_sketch
+    from gymprecice.tools.sketch_drawing import detail_box, draw_sketch
 
     sketch = sketch_case(load_config(case_dir), "toy")
     box = detail_box(sketch)
@@ -154,7 +154,7 @@ def test_the_picture_holds_every_patch_and_an_enlarged_panel(toy, case_dir, tmp_
 
 
 def test_no_enlarged_panel_where_the_actuators_are_large() -> None:
-    from gymprecice.sketch_drawing import detail_box
+    from gymprecice.tools.sketch_drawing import detail_box
 
     big = DrawnPatch("fluid", "inlet", "actuator", _line((0, 0), (0, 4)))
     wall = DrawnPatch("fluid", "walls", "wall", _line((0, 0), (6, 0)))

@@ -19,8 +19,8 @@ from pathlib import Path
 import pytest
 
 from gymprecice import stack
-from gymprecice.install_command import install_steps, stack_checks
-from gymprecice.stack import (
+from gymprecice.tools.install_command import install_steps, stack_checks
+from gymprecice.tools.stack import (
     BuildContext,
     BuildError,
     InstallStep,
@@ -258,7 +258,7 @@ def test_install_command_lists_and_refuses_unknown_steps(prefix):
 
 
 def test_doctor_says_what_is_wrong_when_pyprecice_cannot_load_libprecice(prefix):
-    from gymprecice.cli import _pyprecice_advice
+    from gymprecice.tools.cli import _pyprecice_advice
 
     (prefix / "lib").mkdir(parents=True)
     (prefix / "lib" / "libprecice.so.3").write_bytes(b"")
@@ -275,7 +275,7 @@ def test_doctor_says_what_is_wrong_when_pyprecice_cannot_load_libprecice(prefix)
 
 
 def test_missing_prerequisites_are_named_at_once_and_nothing_of_that_step_builds(prefix, tmp_path):
-    from gymprecice.prerequisites import Prerequisite, program
+    from gymprecice.tools.prerequisites import Prerequisite, program
 
     archive = make_archive(tmp_path / "mirror")
     absent = program("CMake", "no-such-cmake-xyz", debian=("cmake",))
@@ -297,7 +297,7 @@ def test_missing_prerequisites_are_named_at_once_and_nothing_of_that_step_builds
 
 
 def test_a_step_found_elsewhere_or_done_needs_no_prerequisites(prefix, tmp_path):
-    from gymprecice.prerequisites import Prerequisite
+    from gymprecice.tools.prerequisites import Prerequisite
 
     never = Prerequisite("a compiler", lambda: False)
     archive = make_archive(tmp_path / "mirror")
@@ -349,7 +349,7 @@ def test_install_help_states_the_build_prerequisites():
 
 
 def test_core_steps_declare_what_precice_needs():
-    from gymprecice.precice_install import core_install_steps
+    from gymprecice.tools.precice_install import core_install_steps
 
     precice, pyprecice = core_install_steps()
     titles = " ".join(p.title for p in precice.prerequisites)

@@ -29,13 +29,13 @@ import numpy as np
 import pytest
 
 from gymprecice import processes
-from gymprecice.core import Adapter
-from gymprecice.coupling import CouplingSession, WorkerProcess
 from gymprecice.env import launching
-from gymprecice.errors import SolverCrashedError, SolverError
-from gymprecice.pidregistry import PidRegistry, kill_recorded_groups
-from gymprecice.processes import SolverProcess
-from gymprecice.solver import LaunchSpec
+from gymprecice.env.core import Adapter
+from gymprecice.env.coupling import CouplingSession, WorkerProcess
+from gymprecice.env.pidregistry import PidRegistry, kill_recorded_groups
+from gymprecice.env.processes import SolverProcess
+from gymprecice.plugin.errors import SolverCrashedError, SolverError
+from gymprecice.plugin.solver import LaunchSpec
 from gymprecice.testing import case_config
 from gymprecice.testing.flows import place_jets
 
@@ -136,9 +136,9 @@ def wait_gone(pids, timeout=10.0, *, zombie: bool = False) -> bool:
 NAMESPACE_SCRIPT = r"""
 import os, subprocess, sys, time, json
 from pathlib import Path
-from gymprecice.pidregistry import PidRegistry, kill_recorded_groups, process_starttime
-from gymprecice.processes import SolverProcess
-from gymprecice.solver import LaunchSpec
+from gymprecice.env.pidregistry import PidRegistry, kill_recorded_groups, process_starttime
+from gymprecice.env.processes import SolverProcess
+from gymprecice.plugin.solver import LaunchSpec
 
 def force_next_pid(pid):
     Path("/proc/sys/kernel/ns_last_pid").write_text(str(pid - 1))

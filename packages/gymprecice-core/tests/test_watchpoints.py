@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.solver import OutputReader
-from gymprecice.watchpoints import (
+from gymprecice.plugin.solver import OutputReader
+from gymprecice.plugin.watchpoints import (
     WatchPointError,
     WatchPointLog,
     WatchPointTimeoutError,

@@ -9,8 +9,8 @@ import pluggy
 import pytest
 
 from gymprecice import hookspecs
-from gymprecice.errors import ConfigError
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.solver import SolverContext
 from gymprecice_dealii import plugin
 
 HEADER = "  Time  Coordinate0  Coordinate1  Displacement0  Displacement1  Force0  Force1"

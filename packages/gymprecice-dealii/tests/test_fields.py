@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.errors import ConfigError
-from gymprecice.precice_xml import load_precice_config
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.precice_xml import load_precice_config
+from gymprecice.plugin.solver import SolverContext
 from gymprecice_dealii import fields, plugin
 from gymprecice_dealii.prm import ElasticityParameters
 

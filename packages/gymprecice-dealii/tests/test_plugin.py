@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.errors import CaseError, ConfigError
-from gymprecice.precice_xml import load_precice_config
-from gymprecice.solver import SolverContext
-from gymprecice.stack import stack_which
-from gymprecice.watchpoints import WatchPointLog
+from gymprecice.plugin.errors import CaseError, ConfigError
+from gymprecice.plugin.precice_xml import load_precice_config
+from gymprecice.plugin.solver import SolverContext
+from gymprecice.plugin.watchpoints import WatchPointLog
+from gymprecice.tools.stack import stack_which
 from gymprecice_dealii import plugin
 from gymprecice_dealii.prm import ElasticityParameters
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.errors import ConfigError
+from gymprecice.plugin.errors import ConfigError
 from gymprecice_dealii.prm import ElasticityParameters, PrmError, PrmFile
 
 FLAP_PRM = (

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.plugin.precice_xml import load_precice_config
 from gymprecice.testing.conformance import make_solver_context
 
 CASE = Path(__file__).parent / "cases" / "plate"

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.errors import CaseError
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.plugin.errors import CaseError
+from gymprecice.plugin.precice_xml import load_precice_config
 from gymprecice_fenics.adapter_config import AdapterConfig, check_against_precice
 
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.errors import ConfigError
-from gymprecice.fields import FIELDS_ENV_VAR, field_file, grid_points
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.fields import FIELDS_ENV_VAR, field_file, grid_points
 from gymprecice_fenics import plugin
 from gymprecice_fenics.fields import FIELD_INTERVAL_ENV_VAR
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.errors import CaseError, ConfigError
-from gymprecice.stack import BuildContext, BuildError
+from gymprecice.plugin.errors import CaseError, ConfigError
+from gymprecice.tools.stack import BuildContext, BuildError
 from gymprecice_fenics import plugin, solver_env
 
 TRACEBACK = (
@@ -130,7 +130,7 @@ def test_a_controller_writing_heat_flux_where_the_script_reads_temperature(
         )
     )
     solver = make_fenics_solver()
-    from gymprecice.precice_xml import load_precice_config
+    from gymprecice.plugin.precice_xml import load_precice_config
 
     solver.precice = load_precice_config(xml)
     (problem,) = plugin.gymprecice_validate_case(solver)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.errors import CaseError
+from gymprecice.plugin.errors import CaseError
 from gymprecice_fenics import plugin, solver_env
 
 pytestmark = [

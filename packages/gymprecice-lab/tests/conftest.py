@@ -42,7 +42,7 @@ def gymprecice_refused(
     training and evaluation PyTorch) to print one line; here it costs what the check
     costs. A command that is not refused runs here too, and its test fails on the status.
     """
-    from gymprecice.cli import main
+    from gymprecice.tools.cli import main
 
     def run(cwd: Path, *args: str) -> tuple[int, str]:
         monkeypatch.chdir(cwd)

@@ -13,13 +13,17 @@ import numpy as np
 import pytest
 from gymnasium.spaces import Box, Discrete
 
-from gymprecice.cli import main
+from gymprecice.tools.cli import main
 from gymprecice_lab import benchmark, benchmark_training
-from gymprecice_lab.benchmark_checks import BenchmarkError, check_algorithm_fits, parse_algorithms
-from gymprecice_lab.benchmark_stats import estimate, iqm
-from gymprecice_lab.command_runs import CommandFailed, run_commands
-from gymprecice_lab.feedback import FeedbackController
-from gymprecice_lab.lab_env import find_lab_env
+from gymprecice_lab.benchmarking.checks import (
+    BenchmarkError,
+    check_algorithm_fits,
+    parse_algorithms,
+)
+from gymprecice_lab.benchmarking.stats import estimate, iqm
+from gymprecice_lab.common.command_runs import CommandFailed, run_commands
+from gymprecice_lab.common.registered_env import find_lab_env
+from gymprecice_lab.rollouts.feedback import FeedbackController
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: two PPO seeds of 16 actions on the test double: what every tiny benchmark here trains
@@ -579,7 +583,7 @@ class _Starts(gym.Env):
 
 
 def test_the_eval_freq_env_takes_the_held_out_starts_in_turn() -> None:
-    from gymprecice_lab.starts import HeldOutStarts
+    from gymprecice_lab.common.starts import HeldOutStarts
 
     inner = _Starts()
     env = HeldOutStarts(inner)
@@ -593,7 +597,7 @@ def test_the_eval_freq_env_takes_the_held_out_starts_in_turn() -> None:
 def test_evaluations_npz_survives_a_resume(tmp_path) -> None:
     from types import SimpleNamespace
 
-    from gymprecice_lab.evaluation_callback import _keep_evaluations
+    from gymprecice_lab.training.validation import _keep_evaluations
 
     path = tmp_path / "evaluations.npz"
     np.savez(

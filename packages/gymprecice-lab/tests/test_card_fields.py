@@ -17,12 +17,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.card import EnvCard
-from gymprecice.cli import main
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import temporary_plugin
-from gymprecice.registration import register_environments
-from gymprecice_lab.lab_env import find_lab_env
+from gymprecice.plugin.card import EnvCard
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import temporary_plugin
+from gymprecice.plugin.registration import register_environments
+from gymprecice.tools.cli import main
+from gymprecice_lab.common.registered_env import find_lab_env
 
 TRACKING = "labcard/Tracking-v0"  # objective and metrics of its own, held-out starts
 SEEDED = "labcard/Seeded-v0"  # names starts in a property, but its card declares none
@@ -104,7 +104,7 @@ def _status(argv: list[str]) -> int:
 
 
 def test_monitor_columns_are_the_cards_metrics(tmp_path: Path) -> None:
-    from gymprecice_lab.envs import episode_keywords, make_env
+    from gymprecice_lab.common.wrapped_env import episode_keywords, make_env
 
     assert episode_keywords(TRACKING) == ("mean_err", "mean_temp", "action_rms")
     assert episode_keywords(SEEDED) == ("action_rms",)  # a card without metrics
@@ -127,7 +127,7 @@ def test_monitor_columns_are_the_cards_metrics(tmp_path: Path) -> None:
 
 
 def test_training_logs_each_envs_own_metrics() -> None:
-    from gymprecice_lab.callbacks import EpisodeMetricsCallback
+    from gymprecice_lab.training.callbacks import EpisodeMetricsCallback
 
     recorded: dict[str, float] = {}
     logger = SimpleNamespace(record_mean=lambda key, value: recorded.setdefault(key, value))
@@ -196,7 +196,7 @@ def test_benchmark_says_what_its_starts_are(tmp_path: Path, capsys, monkeypatch)
 
 
 def test_results_name_the_env_and_its_starts(tmp_path: Path) -> None:
-    from gymprecice_lab.benchmark_tables import write_tables
+    from gymprecice_lab.benchmarking.tables import write_tables
 
     controllers = [
         {
@@ -223,7 +223,7 @@ def test_results_name_the_env_and_its_starts(tmp_path: Path) -> None:
 
 
 def test_solver_checks_follow_the_env_kwargs() -> None:
-    from gymprecice_lab.requirements import missing_requirements
+    from gymprecice_lab.common.requirements import missing_requirements
 
     report = {
         "checks": [

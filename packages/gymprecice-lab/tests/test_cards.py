@@ -15,12 +15,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.card import CardError, EnvCard, Reference, card_for, find_env
-from gymprecice.cli import main
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import PluginWarning, temporary_plugin
-from gymprecice.registration import register_environments
-from gymprecice_lab.lab_env import default_frequency, find_lab_env
+from gymprecice.plugin.card import CardError, EnvCard, Reference, card_for, find_env
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import PluginWarning, temporary_plugin
+from gymprecice.plugin.registration import register_environments
+from gymprecice.tools.cli import main
+from gymprecice_lab.common.registered_env import default_frequency, find_lab_env
 
 PLAIN = "labtest/Plain-v0"
 CARDED = "labtest/Carded-v0"
@@ -97,7 +97,7 @@ def test_card_fields_of_the_wrong_type_are_refused() -> None:
 def test_a_card_built_with_a_wrong_type_refuses_that_env_alone() -> None:
     """Built in the hook (not a mapping), the card must not break the hook: the env is
     registered and its refusal names the package and the field."""
-    from gymprecice.card import record_card
+    from gymprecice.plugin.card import record_card
 
     with pytest.raises(CardError, match=r"from package 'labtest-pkg'.*'double'"):
         record_card("labtest/Built-v0", EnvCard(double="yes"), "labtest-pkg")  # type: ignore[arg-type]

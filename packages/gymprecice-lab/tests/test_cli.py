@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.cli import build_parser, main
+from gymprecice.tools.cli import build_parser, main
 from gymprecice_lab import hyperparams, manifest, requirements
 from gymprecice_lab.cli.settings import from_argv
-from gymprecice_lab.env_kwargs import build_env_kwargs
-from gymprecice_lab.lab_env import LabEnvError, find_lab_env, lab_envs
+from gymprecice_lab.common.constructor_kwargs import build_env_kwargs
+from gymprecice_lab.common.registered_env import LabEnvError, find_lab_env, lab_envs
 
 ENVIRONMENTS = {env.name: env for env in lab_envs()}
 
@@ -116,7 +116,7 @@ def test_require_solvers_passes_when_the_doctor_finds_everything(monkeypatch, ca
 
 
 def test_require_solvers_explains_a_missing_precice(tmp_path, monkeypatch, capsys):
-    from gymprecice.cli import PRECICE_ADVICE
+    from gymprecice.tools.cli import PRECICE_ADVICE
 
     report = {
         "ok": False,
@@ -144,7 +144,7 @@ def test_require_solvers_explains_a_missing_precice(tmp_path, monkeypatch, capsy
 
 def test_train_require_solvers_on_this_machine(tmp_path):
     """The real doctor: stop at once, naming what this machine lacks (preCICE, adapter)."""
-    from gymprecice.cli import doctor_report
+    from gymprecice.tools.cli import doctor_report
 
     missing = requirements.missing_requirements(doctor_report(), ENVIRONMENTS["jet-cylinder"])
     if not missing:
@@ -363,7 +363,7 @@ def test_td3_explores_with_action_noise_and_a_file_can_choose_it(tmp_path):
 
 
 def test_only_the_newest_checkpoints_and_the_best_are_kept(tmp_path):
-    from gymprecice_lab.callbacks import BEST_NAME, prune_checkpoints
+    from gymprecice_lab.training.callbacks import BEST_NAME, prune_checkpoints
 
     for steps in (10, 20, 30, 40, 50):
         (tmp_path / f"ppo_{steps}_steps.zip").write_text("m")

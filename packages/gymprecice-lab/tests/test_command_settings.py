@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 
-from gymprecice.cli import build_parser, main
+from gymprecice.tools.cli import build_parser, main
 from gymprecice_lab.cli.settings import SETTINGS, from_argv, from_namespace
 
 LAB = Path(__file__).resolve().parents[1] / "src" / "gymprecice_lab"

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice_lab.compare import Controller, margin
+from gymprecice_lab.rollouts.compare import Controller, margin
 
 ENV_ID = "gymprecice/PerpendicularFlapFast-v0"
 

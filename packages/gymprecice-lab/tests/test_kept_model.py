@@ -17,9 +17,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice_lab.evaluation_callback import side_by_side
-from gymprecice_lab.kept_model import choose_model, kept_summary, read_kept
-from gymprecice_lab.starts import (
+from gymprecice_lab.common.kept_model import choose_model, kept_summary, read_kept
+from gymprecice_lab.common.starts import (
     VALIDATION_SEED,
     ValidationStarts,
     evaluation_starts,
@@ -27,6 +26,7 @@ from gymprecice_lab.starts import (
     validation_options,
     validation_starts,
 )
+from gymprecice_lab.training.validation import side_by_side
 
 TUTORIALS_WITH_STARTS = (
     "gymprecice/PerpendicularFlapFast-v0",
@@ -135,7 +135,7 @@ def test_training_chooses_on_validation_starts_and_never_on_held_out_ones(tmp_pa
     dummy``), with every reset's options recorded: the validation env takes only the
     validation gusts, nothing resets to a held-out gust, and the kept model's record
     names the starts it was scored on. About 20 s."""
-    from gymprecice.cli import main
+    from gymprecice.tools.cli import main
     from gymprecice_tutorials.perpendicular_flap.fast import (
         VALIDATION_GUSTS,
         PerpendicularFlapFastEnv,
@@ -192,7 +192,7 @@ def test_training_chooses_on_validation_starts_and_never_on_held_out_ones(tmp_pa
 
 
 def test_time_to_floor_scans_the_kept_model_by_default(tmp_path):
-    from gymprecice_lab.time_to_floor import candidates
+    from gymprecice_lab.benchmarking.time_to_floor import candidates
 
     run = tmp_path / "run"
     (run / "eval").mkdir(parents=True)
@@ -215,7 +215,7 @@ def test_time_to_floor_scans_the_kept_model_by_default(tmp_path):
 
 
 def test_model_option_takes_kept_or_final_and_a_path_as_the_policy():
-    from gymprecice.cli import build_parser
+    from gymprecice.tools.cli import build_parser
 
     parser = build_parser()
     args = parser.parse_args(["evaluate", "quickstart", "--model", "final"])

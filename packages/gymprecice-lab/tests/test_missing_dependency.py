@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.cli import main
+from gymprecice.tools.cli import main
 
 
 @pytest.mark.parametrize(

@@ -37,7 +37,7 @@ def _rows(path: Path) -> tuple[str, list[dict[str, str]]]:
 
 
 def test_a_run_resumed_with_other_columns_rewrites_them_and_keeps_every_value(tmp_path):
-    from gymprecice_lab.envs import _monitor
+    from gymprecice_lab.common.wrapped_env import _monitor
 
     path = tmp_path / "env_0.monitor.csv"
     header = "#" + json.dumps({"t_start": 1000.0, "env_id": "x"}) + "\n"
@@ -65,7 +65,7 @@ def test_a_run_resumed_with_other_columns_rewrites_them_and_keeps_every_value(tm
 
 
 def test_a_run_resumed_with_the_same_columns_appends_unchanged(tmp_path):
-    from gymprecice_lab.envs import _monitor
+    from gymprecice_lab.common.wrapped_env import _monitor
 
     path = tmp_path / "env_0.monitor.csv"
     text = "#" + json.dumps({"t_start": 1000.0}) + "\nr,l,t,mean_Cd\n1.0,1,0.5,3.2\n"

@@ -12,7 +12,7 @@ from stable_baselines3 import SAC, TD3
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper
 
 from gymprecice_lab import hyperparams as hp
-from gymprecice_lab.overlap import OverlappedUpdates, overlapping
+from gymprecice_lab.training.overlap import OverlappedUpdates, overlapping
 
 
 class _Journal(VecEnvWrapper):
@@ -135,7 +135,7 @@ def test_torch_threads_is_a_whole_number_of_threads(tmp_path):
     assert params["torch_threads"] == 1 and "torch_threads" not in hp.model_kwargs(params)
     import torch
 
-    from gymprecice_lab.learner import learner_threads
+    from gymprecice_lab.training.learner import learner_threads
 
     before = torch.get_num_threads()
     try:

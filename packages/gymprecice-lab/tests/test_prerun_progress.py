@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gymprecice_lab.prerun_progress import PrerunProgress, last_time
+from gymprecice_lab.training.prerun_progress import PrerunProgress, last_time
 
 
 def _log(path: Path, times: list[float]) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice_lab.remote_commands import (
+from gymprecice_lab.benchmarking.remote_commands import (
     RemoteCommand,
     RemoteCommandError,
     check_fits,
@@ -119,7 +119,7 @@ def test_sigterm_on_the_driver_cancels_the_tasks_and_their_commands_and_solvers_
         os.kill(os.getpid(), signal.SIGTERM)
 
     threading.Thread(target=stop_when_running, daemon=True).start()
-    from gymprecice_lab.callbacks import Interrupted
+    from gymprecice_lab.training.callbacks import Interrupted
 
     with pytest.raises(Interrupted):
         run_commands([long], ray_cluster.address)

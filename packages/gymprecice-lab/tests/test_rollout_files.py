@@ -18,14 +18,14 @@ import numpy as np
 import pytest
 
 import gymprecice.card
-from gymprecice.card import EnvCard
-from gymprecice.cli import main
-from gymprecice.hookspecs import hookimpl
-from gymprecice.plugins import temporary_plugin
-from gymprecice.registration import register_environments
-from gymprecice_lab.benchmark_plots import plot_objective_per_start
-from gymprecice_lab.lab_env import LabEnv, find_lab_env
-from gymprecice_lab.sweep import SweepResult, _figure
+from gymprecice.plugin.card import EnvCard
+from gymprecice.plugin.hookspecs import hookimpl
+from gymprecice.plugin.manager import temporary_plugin
+from gymprecice.plugin.registration import register_environments
+from gymprecice.tools.cli import main
+from gymprecice_lab.benchmarking.plots import plot_objective_per_start
+from gymprecice_lab.common.registered_env import LabEnv, find_lab_env
+from gymprecice_lab.rollouts.sweep import SweepResult, _figure
 
 ROOT = Path(__file__).resolve().parents[3]
 SHIFTED = "labfiles/Shifted-v0"

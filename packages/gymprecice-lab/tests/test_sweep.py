@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from gymnasium.spaces import Box
 
-from gymprecice.card import CardError, load_object
-from gymprecice.cli import main
+from gymprecice.plugin.card import CardError, load_object
+from gymprecice.tools.cli import main
 from gymprecice_lab import evaluate
-from gymprecice_lab.sweep import SweepResult, best, constant_controller, parse_grid
+from gymprecice_lab.rollouts.sweep import SweepResult, best, constant_controller, parse_grid
 from gymprecice_tutorials.heated_plate.pid import PID_LAW
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -176,8 +176,8 @@ def test_the_plate_pid_module_runs_the_labs_commands(tmp_path: Path, monkeypatch
     lab's commands: a tuning sweep on validation starts, then the held-out sweep of its
     best point with the constants, one evaluate per policy, compare and plot; each is
     printed, and each is one the ``gymprecice`` parser takes."""
-    from gymprecice.cli import build_parser
     from gymprecice.tools import cli
+    from gymprecice.tools.cli import build_parser
     from gymprecice_tutorials.heated_plate import pid
 
     ran: list[list[str]] = []

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.card import Reference
-from gymprecice_lab.evaluate import floor_metrics
-from gymprecice_lab.time_to_floor import checkpoints, median_time
+from gymprecice.plugin.card import Reference
+from gymprecice_lab.benchmarking.time_to_floor import checkpoints, median_time
+from gymprecice_lab.rollouts.evaluate import floor_metrics
 from gymprecice_tutorials.environments import FAST_CYLINDER_FLOOR
 
 
@@ -140,7 +140,7 @@ def test_floor_metrics_take_the_settled_drag_after_the_transient() -> None:
 def test_a_wrapper_passes_the_typed_command_start_and_nonsense_is_ignored(monkeypatch) -> None:
     import time
 
-    from gymprecice_lab.train_manifest import command_started_at
+    from gymprecice_lab.training.segments import command_started_at
 
     monkeypatch.setenv("GYMPRECICE_STARTED_AT", str(time.time() - 30))
     assert time.time() - command_started_at() == pytest.approx(30, abs=5)

@@ -16,7 +16,7 @@ from gymprecice_lab.training.tune_spaces import DEFAULTS, sample, space_names
 
 
 def _train(tmp_path, *extra):
-    from gymprecice.cli import main
+    from gymprecice.tools.cli import main
 
     (tmp_path / "tqc.yml").write_text(
         "gymprecice/Quickstart-v0:\n  learning_starts: 4\n  batch_size: 8\n  net: [16, 16]\n"

@@ -533,7 +533,7 @@ def test_sac_with_a_hyperparameter_file_normalize_and_evaluation(tmp_path):
     from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from gymprecice_lab.envs import load_policy
+    from gymprecice_lab.common.wrapped_env import load_policy
 
     venv, model = load_policy(
         run, "quickstart", double=True, episode_time=0.1, run_root=str(tmp_path / "helper")

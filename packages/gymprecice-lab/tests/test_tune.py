@@ -117,7 +117,7 @@ def test_bad_input_gets_one_line_and_leaves_nothing(tmp_path):
 
 
 def test_a_study_of_another_env_is_refused(tmp_path):
-    from gymprecice_lab.tune import TuneError, open_study
+    from gymprecice_lab.training.tune import TuneError, open_study
 
     url = f"sqlite:///{tmp_path / 'study.db'}"
     settings = {"env_id": "a/A-v0", "algo": "sac", "timesteps": 16, "n_envs": 1, "double": True}
@@ -130,7 +130,7 @@ def test_a_study_of_another_env_is_refused(tmp_path):
 def test_the_search_space_keeps_unsearched_parameters_at_their_defaults():
     import optuna
 
-    from gymprecice_lab.tune_spaces import DEFAULTS, sample
+    from gymprecice_lab.training.tune_spaces import DEFAULTS, sample
 
     study = optuna.create_study()
     trial = study.ask()
@@ -146,7 +146,7 @@ def test_workers_and_resumed_searches_do_not_propose_the_same_first_trials(tmp_p
     """Two ``--n-jobs`` workers opening a study at once, and a search resumed with the
     same command, get samplers of their own: seeded alike, each proposed the same first
     trial (a wasted trial per worker)."""
-    from gymprecice_lab.tune import open_study
+    from gymprecice_lab.training.tune import open_study
 
     url = f"sqlite:///{tmp_path / 'study.db'}"
     settings = {"env_id": "a/A-v0", "algo": "sac", "timesteps": 16, "n_envs": 1, "double": True}

@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gymprecice.card import EnvCard, Reference
+from gymprecice.plugin.card import EnvCard, Reference
 from gymprecice_lab.common.settled_score import UNSETTLED_SCORE, SettledFloorScore
 from gymprecice_lab.rollouts.records import floor_metrics
 from gymprecice_lab.training.validation_score import settled_reference, validation_episode_time
@@ -77,7 +77,7 @@ def test_the_jet_keeps_the_model_best_on_settled_drag_over_longer_episodes(tmp_p
     validation episodes run the 2 s transient and one training episode more, and the kept
     model's record names the settled fraction of the drag floor as its score, the
     validation with the highest one."""
-    from gymprecice.cli import main
+    from gymprecice.tools.cli import main
     from gymprecice_tutorials.environments import fast_cylinder_floor
 
     (tmp_path / "sac.yml").write_text(

@@ -20,7 +20,7 @@ import pytest
 
 import gymprecice  # noqa: F401  (registers the ids)
 from gymprecice_lab import video as video_module
-from gymprecice_lab.video import VideoError, check_renders, check_video_path
+from gymprecice_lab.rollouts.video import VideoError, check_renders, check_video_path
 
 ROLLOUT = ("jet-cylinder-fast", "--double", "--episode-time", "0.1")
 

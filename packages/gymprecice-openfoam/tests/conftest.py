@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.errors import CaseError
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.errors import CaseError
+from gymprecice.plugin.solver import SolverContext
 from gymprecice_openfoam import testing
 from gymprecice_openfoam.installation import OpenFOAMInstallation, find_openfoam, run_tool
 

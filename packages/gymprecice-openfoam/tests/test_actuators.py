@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gymprecice.solver import InterfaceGeometry
+from gymprecice.plugin.solver import InterfaceGeometry
 from gymprecice_openfoam import actuators, mesh
 
 CENTRE = np.array([0.2, 0.2, 0.005])

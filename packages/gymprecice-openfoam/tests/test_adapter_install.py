@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from gymprecice import stack
-from gymprecice.stack import install
+from gymprecice.tools.stack import install
 from gymprecice_openfoam import adapter_install
 from gymprecice_openfoam.installation import OpenFOAMInstallation
 

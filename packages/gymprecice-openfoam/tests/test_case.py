@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from foamlib import FoamFile
 
-from gymprecice.errors import CaseError, ConfigError
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.errors import CaseError, ConfigError
+from gymprecice.plugin.solver import SolverContext
 from gymprecice_openfoam import case, checks, control, installation, testing
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gymprecice.errors import ConfigError
+from gymprecice.plugin.errors import ConfigError
 from gymprecice_openfoam.case import PreparedCase, choose_start, split_snapshots
 
 TIMES = ["4.7", "4.74", "4.78", "4.82", "4.86", "4.9", "4.94", "4.98"]

@@ -8,8 +8,8 @@ import pluggy
 import pytest
 
 from gymprecice import hookspecs
-from gymprecice.errors import ConfigError
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.solver import SolverContext
 from gymprecice_openfoam import plugin
 
 #: pimpleFoam's log, written as the run goes: the Courant number grows step by step

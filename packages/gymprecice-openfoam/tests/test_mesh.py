@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from foamlib import FoamFieldFile, FoamFile
 
-from gymprecice.errors import CaseError
+from gymprecice.plugin.errors import CaseError
 from gymprecice_openfoam import mesh, testing
 
 WARPED_BLOCK = (

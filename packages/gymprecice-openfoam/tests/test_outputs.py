@@ -260,7 +260,7 @@ def test_readers_match_a_real_run_read_while_it_writes(foam, run, cylinder_case)
 
 def test_the_readers_follow_cores_reader_conventions(tmp_path: Path) -> None:
     """``start_time``, ``latest_time`` and ``wait_until``: what env code relies on."""
-    from gymprecice.solver import WaitableOutputReader
+    from gymprecice.plugin.solver import WaitableOutputReader
 
     reader = outputs.TableReader(tmp_path / "postProcessing" / "forces", ["force.dat"])
     assert isinstance(reader, WaitableOutputReader)

@@ -10,9 +10,9 @@ import pluggy
 import pytest
 
 from gymprecice import hookspecs
-from gymprecice.errors import ConfigError
-from gymprecice.precice_xml import MeshSpec, PreciceConfig
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.precice_xml import MeshSpec, PreciceConfig
+from gymprecice.plugin.solver import SolverContext
 from gymprecice_openfoam import case, outputs, plugin, testing
 
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.precice_xml import CouplingSchemeSpec, PreciceConfig
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.precice_xml import CouplingSchemeSpec, PreciceConfig
+from gymprecice.plugin.solver import SolverContext
 from gymprecice.testing.contexts import make_solver_context
 from gymprecice_openfoam import fields, foamio
 from gymprecice_openfoam.testing import HEADER

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.errors import CaseError
-from gymprecice.solver import SolverContext
+from gymprecice.plugin.errors import CaseError
+from gymprecice.plugin.solver import SolverContext
 from gymprecice_openfoam import testing
 from gymprecice_openfoam.function_objects import function_objects, probe_sets
 from gymprecice_openfoam.plugin import gymprecice_sketch_case

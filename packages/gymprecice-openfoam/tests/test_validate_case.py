@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from gymprecice.cli import main
 from gymprecice.testing.chaos import PRECICE_XML
+from gymprecice.tools.cli import main
 from gymprecice_openfoam import testing
 
 BOUNDARY = testing.HEADER.format(cls="polyBoundaryMesh", obj="boundary") + (
@@ -186,9 +186,9 @@ def test_a_misspelled_plugin_option(capsys, tmp_path: Path) -> None:
 def test_geometry_of_a_mesh_preciceDict_does_not_use_names_both_meshes(tmp_path: Path) -> None:
     """At run time too: preciceDict's mesh names against the XML's, not 'call
     set_interface_vertices'."""
-    from gymprecice.errors import CaseError
-    from gymprecice.precice_xml import load_precice_config
-    from gymprecice.solver import SolverContext
+    from gymprecice.plugin.errors import CaseError
+    from gymprecice.plugin.precice_xml import load_precice_config
+    from gymprecice.plugin.solver import SolverContext
     from gymprecice_openfoam import plugin
 
     case = _case(tmp_path)

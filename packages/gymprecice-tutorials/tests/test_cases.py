@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.plugin.precice_xml import load_precice_config
 from gymprecice_tutorials import recipes
 from gymprecice_tutorials.validate import (
     check_smoke,

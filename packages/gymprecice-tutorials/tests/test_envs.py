@@ -21,8 +21,8 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import gymprecice  # noqa: F401  (registers the ids)
-from gymprecice.config import load_config
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.env.config import load_config
+from gymprecice.plugin.precice_xml import load_precice_config
 from gymprecice_openfoam.outputs import ForceCoeffsReader, ProbesReader
 from gymprecice_tutorials import fake_flow, recipes
 from gymprecice_tutorials.cylinder_geometry import patch_geometry
@@ -114,6 +114,19 @@ def test_ids_are_registered_with_lazy_entry_points(monkeypatch):
     ).stdout.splitlines()
     assert eval(out[0]) == sorted(env_id for env_id, _, _ in ENVIRONMENTS)
     assert eval(out[1]) == []
+
+
+def test_the_ids_declared_in_the_metadata_are_the_plugin_s_table():
+    """pyproject.toml declares each id with its class (``gymprecice.environments``), so
+    that ``gymnasium.make`` knows it before the plugin module has loaded; the plugin's
+    table registers the same ids with their cards. The two may not drift apart."""
+    import tomllib
+
+    pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+    declared = tomllib.loads(pyproject.read_text())["project"]["entry-points"][
+        "gymprecice.environments"
+    ]
+    assert declared == {env_id: entry_point for env_id, entry_point, _card in ENVIRONMENTS}
 
 
 # -- the Gymnasium and SB3 checkers ---------------------------------------------------------
@@ -442,7 +455,7 @@ def test_an_episode_on_real_precice_matches_the_double(tmp_path, closing):
 
 
 def _openfoam():
-    from gymprecice.errors import CaseError
+    from gymprecice.plugin.errors import CaseError
     from gymprecice_openfoam.installation import find_openfoam
 
     try:

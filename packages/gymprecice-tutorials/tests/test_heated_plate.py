@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.plugin.precice_xml import load_precice_config
 from gymprecice.testing.conformance import make_solver_context
 from gymprecice_fenics import plugin as fenics_plugin
-from gymprecice_lab.lab_env import find_lab_env
+from gymprecice_lab.common.registered_env import find_lab_env
 from gymprecice_tutorials.heated_plate import CASE_DIR
 from gymprecice_tutorials.heated_plate.environment import (
     EVAL_STARTS,
@@ -218,7 +218,7 @@ def test_a_pid_tracks_the_setpoint_better_than_the_uncontrolled_plate(env) -> No
 
 
 def _check_case(tmp_path: Path, capsys, edit) -> tuple[int, str]:
-    from gymprecice.cli import main
+    from gymprecice.tools.cli import main
 
     case = tmp_path / "case"
     for rel, text in case_files("openfoam", 1.0).items():

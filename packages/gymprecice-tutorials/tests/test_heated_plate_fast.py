@@ -11,7 +11,7 @@ import re
 import numpy as np
 import pytest
 
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.plugin.precice_xml import load_precice_config
 from gymprecice_tutorials.heated_plate.environment import EVAL_STARTS, HeatedPlateEnv, case_files
 from gymprecice_tutorials.heated_plate.fast import (
     FAST_WINDOW,

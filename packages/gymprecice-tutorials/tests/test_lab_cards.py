@@ -12,9 +12,9 @@ import sys
 
 import pytest
 
-from gymprecice_lab.envs import episode_keywords
-from gymprecice_lab.lab_env import find_lab_env
-from gymprecice_lab.requirements import missing_requirements
+from gymprecice_lab.common.registered_env import find_lab_env
+from gymprecice_lab.common.requirements import missing_requirements
+from gymprecice_lab.common.wrapped_env import episode_keywords
 
 CYLINDERS = (
     "jet-cylinder",

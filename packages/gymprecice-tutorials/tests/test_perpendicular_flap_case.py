@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 from foamlib import FoamFile
 
-from gymprecice.config import load_config
-from gymprecice.errors import ConfigError
-from gymprecice.precice_xml import load_precice_config
-from gymprecice.solver import SolverContext
-from gymprecice.watchpoints import WatchPointLog
+from gymprecice.env.config import load_config
+from gymprecice.plugin.errors import ConfigError
+from gymprecice.plugin.precice_xml import load_precice_config
+from gymprecice.plugin.solver import SolverContext
+from gymprecice.plugin.watchpoints import WatchPointLog
 from gymprecice_dealii.plugin import check_against_precice
 from gymprecice_dealii.prm import ElasticityParameters
 from gymprecice_tutorials.perpendicular_flap import CASE_DIR
@@ -367,7 +367,7 @@ def test_env_calls_open_output_in_a_form_core_accepts(env: PerpendicularFlapEnv)
     """The watch point's keyword must not collide with open_output's own parameters."""
     import inspect
 
-    from gymprecice.core import Adapter
+    from gymprecice.env.core import Adapter
 
     inspect.signature(Adapter.open_output).bind(
         env, PerpendicularFlapEnv.SOLID, "watchpoint", point=PerpendicularFlapEnv.WATCH_POINT

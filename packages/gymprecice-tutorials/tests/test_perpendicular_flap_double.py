@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.config import load_config
-from gymprecice.precice_xml import load_precice_config
-from gymprecice.watchpoints import WatchPointLog
-from gymprecice_lab.lab_env import find_lab_env
+from gymprecice.env.config import load_config
+from gymprecice.plugin.precice_xml import load_precice_config
+from gymprecice.plugin.watchpoints import WatchPointLog
+from gymprecice_lab.common.registered_env import find_lab_env
 from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.perpendicular_flap import double
 from gymprecice_tutorials.perpendicular_flap.environment import jet_profile

@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.config import load_config
-from gymprecice.precice_xml import load_precice_config
-from gymprecice.solver import SolverContext
-from gymprecice.watchpoints import WatchPointLog
+from gymprecice.env.config import load_config
+from gymprecice.plugin.precice_xml import load_precice_config
+from gymprecice.plugin.solver import SolverContext
+from gymprecice.plugin.watchpoints import WatchPointLog
 from gymprecice_dealii.plugin import check_against_precice
 from gymprecice_dealii.prm import ElasticityParameters
-from gymprecice_lab.lab_env import find_lab_env
+from gymprecice_lab.common.registered_env import find_lab_env
 from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.perpendicular_flap import fast, training_case
 from gymprecice_tutorials.perpendicular_flap.fast import (

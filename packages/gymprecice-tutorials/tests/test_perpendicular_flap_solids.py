@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.config import load_config
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.env.config import load_config
+from gymprecice.plugin.precice_xml import load_precice_config
 from gymprecice_fenics.adapter_config import AdapterConfig, check_against_precice
 from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.perpendicular_flap import CASE_DIR
@@ -138,7 +138,7 @@ def test_swing_figures_of_a_sampled_swing() -> None:
 
 
 def test_the_flap_card_declares_the_reference_inflow_as_uncontrolled(tmp_path: Path) -> None:
-    from gymprecice_lab.lab_env import find_lab_env
+    from gymprecice_lab.common.registered_env import find_lab_env
 
     kwargs = dict(find_lab_env("gymprecice/PerpendicularFlap-v0").baseline_kwargs)
     assert kwargs == {"jet_height": 4.0}

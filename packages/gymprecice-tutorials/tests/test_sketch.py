@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gymprecice.case_sketch import CaseSketch, sketch_case
-from gymprecice.cli import main
-from gymprecice.sketch_command import load_case
+from gymprecice.tools.case_sketch import CaseSketch, sketch_case
+from gymprecice.tools.cli import main
+from gymprecice.tools.sketch_command import load_case
 
 needs_blockmesh = pytest.mark.skipif(
     shutil.which("blockMesh") is None, reason="OpenFOAM (blockMesh) is not on PATH"

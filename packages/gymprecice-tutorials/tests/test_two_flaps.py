@@ -22,10 +22,10 @@ pytest.importorskip("pettingzoo")
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import gymprecice  # noqa: F401  (registers the ids)
-from gymprecice.fields import FIELDS_DIR, read_field_file
+from gymprecice.env.processes import kill_recorded_groups
 from gymprecice.multiagent import JointEnv
-from gymprecice.processes import kill_recorded_groups
-from gymprecice.stack import stack_which
+from gymprecice.plugin.fields import FIELDS_DIR, read_field_file
+from gymprecice.tools.stack import stack_which
 from gymprecice_openfoam.testing import missing_coupled_stack
 from gymprecice_tutorials.two_flaps import CASE_DIR
 from gymprecice_tutorials.two_flaps.double import training_slots
@@ -403,7 +403,7 @@ def test_killing_one_solid_is_reported_and_reset_recovers(tmp_path: Path) -> Non
 
     Cost: about 25 s on 2 idle cores (two resets and a few steps of the training case).
     """
-    from gymprecice.errors import CouplingError, SolverError
+    from gymprecice.plugin.errors import CouplingError, SolverError
 
     env = TwoFlapsFastEnv(run_root=tmp_path, settle_time=0.2, episode_time=1.0)
     try:

@@ -3,11 +3,20 @@
 Importing the package registers the Gymnasium environment ids of every installed plugin
 (see :mod:`gymprecice.registration`), so ``gymnasium.make("gymprecice/...")`` works
 without importing the plugin packages by hand.
+
+The flat module paths of earlier versions (``gymprecice.core``, ``gymprecice.errors``,
+...) still import, as the modules that now hold them (:mod:`gymprecice.old_paths`).
 """
 
 import os
 
+from gymprecice.old_paths import MOVED as _MOVED
+from gymprecice.old_paths import install as _answer_old_paths
+
 __version__ = "0.2.0"
+
+# Before anything else imports: plugins written against the old paths load through it.
+_answer_old_paths(_MOVED)
 
 
 def _register_plugin_environments() -> None:

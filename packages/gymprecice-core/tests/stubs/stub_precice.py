@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from gymprecice.precice_xml import load_precice_config
+from gymprecice.plugin.precice_xml import load_precice_config
 
 
 class Participant:

@@ -7,8 +7,14 @@ sweep, compare, plot), :mod:`.benchmarking` (benchmark, time-to-floor),
 PPO) and :mod:`.common` (ENV and its card, the wrapped env, starts, manifests).
 
 The flat module paths of earlier versions (``gymprecice_lab.train``,
-``gymprecice_lab.evaluate``, ``gymprecice_lab.lab_env``, ...) still import: each is a
-file of three lines that puts its new module in ``sys.modules`` under the old name, so
-both names are the same module object (a monkeypatch on either is seen by both, and a
-run pickled under an old name loads). New code imports the new paths.
+``gymprecice_lab.evaluate``, ``gymprecice_lab.lab_env``, ...) still import: importing the
+lab installs a finder for its table (:mod:`gymprecice_lab.old_paths`), which answers each
+old path with its new module, so both names are the same module object (a monkeypatch on
+either is seen by both, and a run pickled under an old name loads). New code imports the
+new paths.
 """
+
+from gymprecice.old_paths import install as _answer_old_paths
+from gymprecice_lab.old_paths import MOVED as _MOVED
+
+_answer_old_paths(_MOVED)

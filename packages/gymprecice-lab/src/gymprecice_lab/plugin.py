@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from gymprecice.hookspecs import hookimpl
+from gymprecice.plugin.hookspecs import hookimpl
 
 __all__ = ["gymprecice_register_commands"]
 

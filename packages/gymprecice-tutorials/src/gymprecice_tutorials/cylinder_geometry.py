@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gymprecice.solver import InterfaceGeometry
+from gymprecice.plugin.solver import InterfaceGeometry
 from gymprecice_tutorials import recipes
 from gymprecice_tutorials.recipes import CaseSpec
 

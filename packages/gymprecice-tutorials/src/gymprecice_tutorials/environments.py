@@ -22,7 +22,7 @@ import functools
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from gymprecice.card import EnvCard, Reference
+    from gymprecice.plugin.card import EnvCard, Reference
 
 #: ENVIRONMENTS and FAST_CYLINDER_FLOOR come from ``__getattr__``, built when first read
 __all__ = [
@@ -40,7 +40,7 @@ __all__ = [
 @functools.cache
 def fast_cylinder_floor() -> Reference:
     """The drag floor of the fast cylinders' training case (``FAST_CYLINDER_FLOOR``)."""
-    from gymprecice.card import Reference
+    from gymprecice.plugin.card import Reference
 
     return Reference(
         metric="Cd", uncontrolled=3.2195, floor=2.9755, settle_time=2.0, label="drag floor"
@@ -66,7 +66,7 @@ def environments() -> tuple[tuple[str, str, EnvCard], ...]:
     """``(id, "module:Class", lab card)`` of every tutorial environment."""
     from dataclasses import replace
 
-    from gymprecice.card import EnvCard
+    from gymprecice.plugin.card import EnvCard
 
     floor = fast_cylinder_floor()
     # what every cylinder's card says alike: its force coefficients, the lift as the signal a

@@ -47,8 +47,8 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.fields import Field
-from gymprecice.precice_xml import PreciceConfig
+from gymprecice.plugin.fields import Field
+from gymprecice.plugin.precice_xml import PreciceConfig
 from gymprecice.testing import partner
 from gymprecice.testing.flows import Flow
 from gymprecice_tutorials import recipes

@@ -5,25 +5,20 @@ stay light: environment classes are named by ``"module:Class"`` strings (Gymnasi
 them only in ``make``). The lab's commands (``gymprecice train``, ``evaluate``, ...) come
 from ``gymprecice-lab`` (the ``train`` extra), which reads the cards registered here.
 
-Nothing here imports ``gymprecice`` when the module is imported, and the table is built
-inside the hook: whichever module a program imports first (this one, the table, an env
-class or ``gymprecice``), the hook runs when ``gymprecice`` registers its plugins and finds
-everything it needs whole, so ``gymnasium.make`` knows the tutorials' ids right after.
-(Importing ``gymprecice.plugin.hookspecs`` here would work too, but were this module the
-first import, gymprecice would meet it half imported and register it only at the next
-use of its plugin manager: :mod:`gymprecice.plugin.manager`.)
+The ids are also declared in the distribution's metadata (the
+``gymprecice.environments`` entry points in ``pyproject.toml``), so ``gymnasium.make``
+knows them right after ``import gymprecice`` even when a program imports this module
+first (gymprecice then meets it half imported and registers its hook at the next use of
+its plugin manager: :mod:`gymprecice.plugin.registration`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
-import pluggy
+from gymprecice.plugin import hookimpl
 
 __all__ = ["gymprecice_register_environments"]
-
-#: ``gymprecice.hookspecs.hookimpl``: the same marker, made without importing gymprecice
-hookimpl = pluggy.HookimplMarker("gymprecice")
 
 
 @hookimpl

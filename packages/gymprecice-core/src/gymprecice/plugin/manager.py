@@ -73,6 +73,7 @@ __all__ = [
     "PluginInfo",
     "PluginWarning",
     "SolverKind",
+    "disabled_by_environment",
     "get_plugin_manager",
     "list_plugins",
     "on_late_plugins",
@@ -129,6 +130,19 @@ def _disabled_selector(value: str | None) -> bool | frozenset[str]:
     if value.strip().lower() in _ALL:
         return True
     return frozenset(_canonical(part) for part in value.split(",") if part.strip())
+
+
+def disabled_by_environment(names: list[str], dist: importlib.metadata.Distribution) -> bool:
+    """Whether ``GYMPRECICE_DISABLE_PLUGINS`` blocks a distribution's plugins: all of them,
+    or one of ``names`` (its entry-point names), or the distribution's own name."""
+    selector = _disabled_selector(os.environ.get(DISABLE_ENV_VAR))
+    if isinstance(selector, bool):
+        return selector
+    dist_name = _dist_name(dist)
+    wanted = {_canonical(name) for name in names}
+    if dist_name is not None:
+        wanted.add(_canonical(dist_name))
+    return bool(wanted & selector)
 
 
 def _dist_name(dist: importlib.metadata.Distribution) -> str | None:

@@ -217,7 +217,7 @@ def _wait(process: subprocess.Popen[bytes]) -> int:
 def _kill_solvers_left(work: Path) -> None:
     """Kill every solver a command's envs recorded and left running (a command killed
     before it could stop them)."""
-    from gymprecice.pidregistry import kill_recorded_groups
+    from gymprecice.env.pidregistry import kill_recorded_groups
 
     for registry in work.rglob(".gymprecice"):
         with contextlib.suppress(Exception):

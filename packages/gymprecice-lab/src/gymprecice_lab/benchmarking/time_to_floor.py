@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.card import Reference
+from gymprecice.plugin.card import Reference
 from gymprecice_lab.benchmarking.command_settings import TimeToFloorSettings
 from gymprecice_lab.common.command_runs import CommandFailed, evaluated, run_commands
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gymprecice.card import CardError, EnvCard, Reference, card_for, find_env, registered_ids
+from gymprecice.plugin.card import CardError, EnvCard, Reference, card_for, find_env, registered_ids
 
 __all__ = [
     "LabEnv",

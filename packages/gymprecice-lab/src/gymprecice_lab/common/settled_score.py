@@ -16,7 +16,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.card import Reference
+from gymprecice.plugin.card import Reference
 
 __all__ = ["UNSETTLED_SCORE", "SettledFloorScore"]
 

@@ -63,7 +63,7 @@ def held_out_starts(env: gym.Env) -> tuple[str, ...]:
     env_id = _registered_id(env)
     if env_id is None:
         return labels
-    from gymprecice.card import card_for
+    from gymprecice.plugin.card import card_for
 
     if not card_for(env_id).held_out_starts:
         return ()
@@ -132,7 +132,7 @@ def validation_starts(env: gym.Env) -> tuple[str, ...]:
     labels = tuple(getattr(env.unwrapped, "validation_starts", ()) or ())
     declared = labels if env_id is None else ()
     if env_id is not None:
-        from gymprecice.card import card_for
+        from gymprecice.plugin.card import card_for
 
         if card_for(env_id).validation_starts:
             if not labels:
@@ -154,7 +154,7 @@ def _declares_validation(env: gym.Env) -> bool:
     env_id = _registered_id(env)
     if env_id is None:
         return bool(getattr(env.unwrapped, "validation_starts", ()) or ())
-    from gymprecice.card import card_for
+    from gymprecice.plugin.card import card_for
 
     return card_for(env_id).validation_starts
 

@@ -28,7 +28,7 @@ import numpy as np
 from gymprecice_lab.common.registered_env import find_lab_env
 
 if TYPE_CHECKING:
-    from gymprecice.card import Reference
+    from gymprecice.plugin.card import Reference
 
 __all__ = [
     "ACTION_RMS",
@@ -61,7 +61,7 @@ def episode_keywords(env_id: str) -> tuple[str, ...]:
     ``mean_mean_tip_displacement, action_rms``; an env without a card ``action_rms``
     alone. TensorBoard records every metric the env reports (:data:`EPISODE_METRICS_KEY`).
     """
-    from gymprecice.card import CardError, EnvCard, card_for
+    from gymprecice.plugin.card import CardError, EnvCard, card_for
     from gymprecice_lab.common.registered_env import LabEnv
 
     try:
@@ -180,7 +180,7 @@ def make_env(
         unit = np.ones(space.shape, dtype=space.dtype)
         env = gym.wrappers.RescaleAction(env, -unit, unit)
     if robustness:
-        from gymprecice.robustness import wrap
+        from gymprecice.learners.robustness import wrap
 
         env = wrap(env, robustness)
     if monitor_file is not None:

@@ -19,8 +19,8 @@ class WrapError(ValueError):
 
 def parse_wrap_argument(text: str) -> dict[str, Any]:
     """One ``--wrap NAME:KEY=VALUE,...`` for argparse (``type=``)."""
-    from gymprecice.errors import ConfigError
-    from gymprecice.robustness import parse_wrap_option
+    from gymprecice.learners.robustness import parse_wrap_option
+    from gymprecice.plugin.errors import ConfigError
 
     try:
         return parse_wrap_option(text)
@@ -31,8 +31,8 @@ def parse_wrap_argument(text: str) -> dict[str, Any]:
 def wrap_spec(*parts: Any) -> dict[str, Any]:
     """Robustness specs (dicts, or lists of ``--wrap`` dicts) merged, later ones winning
     per wrapper, and checked; a bad one raises :class:`WrapError`."""
-    from gymprecice.errors import ConfigError
-    from gymprecice.robustness import checked_spec
+    from gymprecice.learners.robustness import checked_spec
+    from gymprecice.plugin.errors import ConfigError
 
     merged: dict[str, Any] = {}
     for part in parts:

@@ -17,7 +17,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.card import FeedbackLaw, load_object
+from gymprecice.plugin.card import FeedbackLaw, load_object
 from gymprecice_lab.common.registered_env import LabEnv
 
 __all__ = ["Controller", "law_point", "sine_controller", "zero_controller"]

@@ -64,7 +64,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from gymprecice.card import FeedbackLaw
+from gymprecice.plugin.card import FeedbackLaw
 from gymprecice_lab.common.manifest import file_sha256, read_manifest, write_manifest
 from gymprecice_lab.common.registered_env import (
     LabEnv,

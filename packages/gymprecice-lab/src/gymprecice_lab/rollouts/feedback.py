@@ -34,7 +34,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.card import FeedbackLaw, Grid, load_object
+from gymprecice.plugin.card import FeedbackLaw, Grid, load_object
 
 __all__ = ["FeedbackController", "own_law_grid"]
 

@@ -196,8 +196,8 @@ def _action_scheme(run: Path) -> tuple[str, int]:
     of 1 or more on the controller's write data in the case's preCICE configuration)
     reaches the solver as a ramp, whatever core writes.
     """
-    from gymprecice.errors import ConfigError
-    from gymprecice.precice_xml import load_precice_config
+    from gymprecice.plugin.errors import ConfigError
+    from gymprecice.plugin.precice_xml import load_precice_config
 
     try:
         manifest = json.loads((run / "manifest.json").read_text())
@@ -229,7 +229,7 @@ def applied_action(
     preCICE windows (``ramp``: a line from the previous action; ``hold``: a step). The
     episode starts from rest (zero).
     """
-    from gymprecice.actions import ActionSchedule
+    from gymprecice.env.actions import ActionSchedule
 
     schedule = ActionSchedule(scheme=scheme, windows=max(1, windows))
     schedule.start(np.zeros(1))

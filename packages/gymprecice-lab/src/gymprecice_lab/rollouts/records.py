@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.card import Reference
+from gymprecice.plugin.card import Reference
 
 __all__ = [
     "COEFFICIENTS",

@@ -18,7 +18,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.card import Reference
+from gymprecice.plugin.card import Reference
 from gymprecice_lab.common.starts import (
     held_out_starts,
     seed_start_label,

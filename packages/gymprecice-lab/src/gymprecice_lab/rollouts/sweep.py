@@ -50,7 +50,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.card import FeedbackLaw, load_object
+from gymprecice.plugin.card import FeedbackLaw, load_object
 from gymprecice_lab.common.command_runs import die_with_parent
 from gymprecice_lab.common.manifest import write_manifest
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env

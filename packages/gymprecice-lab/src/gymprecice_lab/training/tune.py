@@ -159,7 +159,7 @@ def _retry_dead_trials(study: Any) -> None:
 
 def _alive(pid: Any, started: Any) -> bool:
     """Whether process ``pid`` runs and is the one that started at ``started``."""
-    from gymprecice.pidregistry import process_starttime
+    from gymprecice.env.pidregistry import process_starttime
 
     try:
         return pid is not None and process_starttime(int(pid)) == started
@@ -216,7 +216,7 @@ def objective(trial: Any, settings: TuneSettings, env: LabEnv, out: Path) -> flo
 
 
 def _own_start() -> Any:
-    from gymprecice.pidregistry import process_starttime
+    from gymprecice.env.pidregistry import process_starttime
 
     return process_starttime(os.getpid())
 

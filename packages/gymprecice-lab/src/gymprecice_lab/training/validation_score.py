@@ -21,7 +21,7 @@ model best on that, unchanged.
 
 from __future__ import annotations
 
-from gymprecice.card import EnvCard, Reference
+from gymprecice.plugin.card import EnvCard, Reference
 from gymprecice_lab.common.kept_model import RETURN_SCORE
 
 __all__ = ["score_name", "settled_reference", "validation_episode_time"]

@@ -73,7 +73,7 @@ def make_vec_env(
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     if ray is not None:
-        from gymprecice.sb3 import ResilientSubprocVecEnv
+        from gymprecice.learners.sb3 import ResilientSubprocVecEnv
         from gymprecice.vector.ray import RayBackend
 
         backend = RayBackend(ray)
@@ -85,7 +85,7 @@ def make_vec_env(
         return DummyVecEnv(list(fns))
     if kind in ("auto", "resilient"):
         try:
-            from gymprecice.sb3 import ResilientSubprocVecEnv
+            from gymprecice.learners.sb3 import ResilientSubprocVecEnv
         except ImportError:
             if kind == "resilient":
                 raise SystemExit(
@@ -101,7 +101,7 @@ def telemetry_callbacks(vec: Any) -> list[Any]:
     """gymprecice's telemetry callback (time in solvers vs env vs learner, failures) in
     TensorBoard, for the resilient vector env that measures it."""
     try:
-        from gymprecice.sb3 import ResilientSubprocVecEnv, TelemetryCallback
+        from gymprecice.learners.sb3 import ResilientSubprocVecEnv, TelemetryCallback
     except ImportError:
         return []
     return [TelemetryCallback()] if isinstance(vec, ResilientSubprocVecEnv) else []

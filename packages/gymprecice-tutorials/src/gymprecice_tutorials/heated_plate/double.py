@@ -38,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.fields import Field, grid_points
-from gymprecice.precice_xml import PreciceConfig
+from gymprecice.plugin.fields import Field, grid_points
+from gymprecice.plugin.precice_xml import PreciceConfig
 from gymprecice.testing import partner
 from gymprecice.testing.flows import Flow
 from gymprecice_tutorials.heated_plate.packaged_case import WINDOW, case_files

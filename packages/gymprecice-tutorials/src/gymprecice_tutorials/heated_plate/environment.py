@@ -55,8 +55,8 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.core import Adapter
-from gymprecice.fields import Overlay
+from gymprecice.env.core import Adapter
+from gymprecice.plugin.fields import Overlay
 from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.episodes import fixed_start, read_split
 from gymprecice_tutorials.heated_plate.packaged_case import SOLIDS, case_files

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.card import FeedbackLaw
+from gymprecice.plugin.card import FeedbackLaw
 from gymprecice_tutorials.heated_plate.environment import (
     ACTION_TIME,
     HEATER_RANGE,

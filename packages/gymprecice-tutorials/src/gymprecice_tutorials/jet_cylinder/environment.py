@@ -29,9 +29,9 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.core import Adapter, DataRef
-from gymprecice.fields import Overlay
-from gymprecice.solver import InterfaceGeometry, OutputReader
+from gymprecice.env.core import Adapter, DataRef
+from gymprecice.plugin.fields import Overlay
+from gymprecice.plugin.solver import InterfaceGeometry, OutputReader
 from gymprecice_openfoam import actuators
 from gymprecice_tutorials import recipes
 from gymprecice_tutorials.case_files import write_case_files

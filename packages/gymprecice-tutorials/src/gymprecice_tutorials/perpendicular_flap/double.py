@@ -42,12 +42,12 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.fields import Field, grid_points
-from gymprecice.precice_xml import PreciceConfig
-from gymprecice.solver import InterfaceGeometry
+from gymprecice.plugin.fields import Field, grid_points
+from gymprecice.plugin.precice_xml import PreciceConfig
+from gymprecice.plugin.solver import InterfaceGeometry
+from gymprecice.plugin.watchpoints import watch_point_file_name
 from gymprecice.testing import partner
 from gymprecice.testing.flows import Flow
-from gymprecice.watchpoints import watch_point_file_name
 from gymprecice_tutorials.perpendicular_flap.environment import PerpendicularFlapEnv, jet_profile
 from gymprecice_tutorials.perpendicular_flap.training_case import WINDOW, fast_case_files
 

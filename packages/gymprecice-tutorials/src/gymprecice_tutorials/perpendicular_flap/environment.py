@@ -63,8 +63,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.core import Adapter
-from gymprecice.fields import Overlay
+from gymprecice.env.core import Adapter
+from gymprecice.plugin.fields import Overlay
 from gymprecice_tutorials.case_files import write_case_files
 from gymprecice_tutorials.perpendicular_flap.packaged_case import SOLIDS, case_files, check_solid
 from gymprecice_tutorials.perpendicular_flap.precice_setup import SETUPS, setup_case_files

@@ -19,9 +19,9 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.core import DataRef
-from gymprecice.fields import Overlay
-from gymprecice.solver import InterfaceGeometry
+from gymprecice.env.core import DataRef
+from gymprecice.plugin.fields import Overlay
+from gymprecice.plugin.solver import InterfaceGeometry
 from gymprecice_openfoam import actuators
 from gymprecice_tutorials.cylinder_geometry import patch_geometry
 from gymprecice_tutorials.jet_cylinder.environment import CylinderFlowEnv

@@ -30,8 +30,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.core import Adapter
-from gymprecice.fields import Overlay
+from gymprecice.env.core import Adapter
+from gymprecice.plugin.fields import Overlay
 from gymprecice_openfoam import actuators
 from gymprecice_openfoam.outputs import last_per_time
 from gymprecice_tutorials.case_files import write_case_files

@@ -41,10 +41,10 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice.fields import Field, grid_points
-from gymprecice.precice_xml import PreciceConfig
-from gymprecice.solver import InterfaceGeometry
-from gymprecice.watchpoints import watch_point_file_name
+from gymprecice.plugin.fields import Field, grid_points
+from gymprecice.plugin.precice_xml import PreciceConfig
+from gymprecice.plugin.solver import InterfaceGeometry
+from gymprecice.plugin.watchpoints import watch_point_file_name
 from gymprecice_tutorials.perpendicular_flap.double import ScriptedFlap, scripted_solid, swing
 from gymprecice_tutorials.two_flaps.environment import FLAPS, Flap, TwoFlapsEnv
 from gymprecice_tutorials.two_flaps.training_case import WINDOW, fast_case_files

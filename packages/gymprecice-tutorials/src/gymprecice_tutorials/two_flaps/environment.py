@@ -49,8 +49,8 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from gymprecice.fields import Overlay
 from gymprecice.multiagent import MultiAgentAdapter
+from gymprecice.plugin.fields import Overlay
 from gymprecice_tutorials.perpendicular_flap.environment import jet_profile
 from gymprecice_tutorials.two_flaps import CASE_DIR
 

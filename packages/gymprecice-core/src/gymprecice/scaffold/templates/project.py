@@ -30,6 +30,11 @@ test = ["pytest>=7"]
 [project.entry-points.gymprecice]
 {{dist}} = "{{module}}.plugin"
 
+# The id, declared in the metadata too: `import gymprecice` registers it before it loads
+# any plugin module, so gymnasium.make knows it whichever module a program imports first.
+[project.entry-points."gymprecice.environments"]
+"{{env_id}}" = "{{module}}.env:{{class_name}}"
+
 [tool.setuptools.packages.find]
 where = ["src"]
 
