@@ -33,6 +33,7 @@ import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from urllib.parse import urlsplit
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -204,7 +205,13 @@ def repository_env(repo_url: str | None, edit_uri: str | None = None) -> dict[st
         return {}
     if not repo_url.startswith(("https://", "http://")):
         raise ValueError(f"--repo-url must be an http(s) address, not {repo_url!r}")
-    return {"GYMPRECICE_REPO_URL": repo_url, "GYMPRECICE_EDIT_URI": edit_uri or DEFAULT_EDIT_URI}
+    # the header shows the repository's path (owner/name), not the host's name
+    name = urlsplit(repo_url).path.strip("/") or urlsplit(repo_url).netloc
+    return {
+        "GYMPRECICE_REPO_URL": repo_url,
+        "GYMPRECICE_REPO_NAME": name,
+        "GYMPRECICE_EDIT_URI": edit_uri or DEFAULT_EDIT_URI,
+    }
 
 
 def build(
@@ -219,7 +226,7 @@ def build(
     if site_dir is not None:
         command += ["--site-dir", str(site_dir)]
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "NO_COLOR": "1"}
-    for variable in ("GYMPRECICE_REPO_URL", "GYMPRECICE_EDIT_URI"):
+    for variable in ("GYMPRECICE_REPO_URL", "GYMPRECICE_REPO_NAME", "GYMPRECICE_EDIT_URI"):
         env.pop(variable, None)
     env.update(repository_env(repo_url, edit_uri))
     proc = subprocess.run(

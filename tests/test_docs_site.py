@@ -72,7 +72,7 @@ def _site_config(monkeypatch: pytest.MonkeyPatch, **variables: str):
     pytest.importorskip("mkdocs")
     from mkdocs.config import load_config
 
-    for name in ("GYMPRECICE_REPO_URL", "GYMPRECICE_EDIT_URI"):
+    for name in ("GYMPRECICE_REPO_URL", "GYMPRECICE_REPO_NAME", "GYMPRECICE_EDIT_URI"):
         monkeypatch.delenv(name, raising=False)
     for name, value in variables.items():
         monkeypatch.setenv(name, value)
@@ -87,6 +87,7 @@ def test_with_a_repository_address_every_page_links_it_and_its_own_source(monkey
         monkeypatch, **build_docs.repository_env("https://example.org/group/gymprecice")
     )
     assert config.repo_url == "https://example.org/group/gymprecice"
+    assert config.repo_name == "group/gymprecice"
     assert config.edit_uri == "edit/main/docs/"
     assert "content.action.edit" in config.theme["features"]
     config = _site_config(
