@@ -267,7 +267,8 @@ def test_wheels_carry_code_data_entry_points_licence_and_metadata(wheelhouse: Pa
         assert len(meta.get_payload()) > 1500, f"{dist}: its README is not an index page"
         if dist == "gymprecice-core":
             assert "gymprecice = gymprecice.cli:main" in text
-            assert "gymprecice/hookspecs.py" in names
+            assert "gymprecice/plugin/hookspecs.py" in names
+            assert "gymprecice/old_paths.py" in names
             assert "gymprecice/testing/fake_precice/participant.py" in names
             assert "gymprecice/testing/fake_precice/schemes/base.py" in names
             requires = " ".join(meta.get_all("Requires-Dist") or [])
@@ -278,6 +279,9 @@ def test_wheels_carry_code_data_entry_points_licence_and_metadata(wheelhouse: Pa
             requires = " ".join(meta.get_all("Requires-Dist") or [])
             assert "PyYAML" in requires and "torch>=2.8" in requires
         if dist == "gymprecice-tutorials":
+            # the ids, declared in the metadata (registered before any plugin module loads)
+            assert "[gymprecice.environments]" in text
+            assert "gymprecice/JetCylinderFast-v0 = gymprecice_tutorials.fast_cases:" in text
             cases = [n for n in names if "/cases/" in n]
             assert any(n.endswith("precice-config.xml") for n in cases)
             assert any(n.endswith("gymprecice-config.json") for n in cases)
