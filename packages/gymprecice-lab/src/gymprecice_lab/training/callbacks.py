@@ -6,9 +6,10 @@
 * :class:`EpisodeMetricsCallback`: the envs' episode means (of every metric they report in
   ``info["metrics"]``, and the action RMS) in TensorBoard and ``progress.csv``, next to the
   return;
-* :func:`stop_signals_interrupt`: SIGTERM (SLURM preemption, ``timeout``) and SIGHUP (a
-  closed terminal) stop training the way Ctrl-C does, so the policy is saved; around the
-  save, :func:`hold_stop_signals` keeps a repeated signal from cutting it short;
+* :func:`stop_signals_interrupt`: SIGTERM (SLURM preemption, ``timeout``), SIGHUP (a
+  closed terminal) and Ctrl-C stop training, so the policy is saved, but never in the
+  middle of a gradient update; around the save, :func:`hold_stop_signals` keeps a
+  repeated signal from cutting it short;
 * :func:`save_checkpoint`: every file of a checkpoint is written under a temporary name
   and renamed into place once whole, the model's zip last. A cluster sends SIGKILL a grace
   period after SIGTERM (SLURM: 30 s by default); a save it cuts short leaves only a
@@ -64,13 +65,19 @@ class Interrupted(KeyboardInterrupt):
 
 @contextlib.contextmanager
 def stop_signals_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM and SIGHUP raise :class:`Interrupted` like Ctrl-C would.
+    """Within the block, SIGTERM, SIGHUP and Ctrl-C raise :class:`Interrupted`.
 
     Installed after the vector env's workers are started, so that they keep the default
     handlers and die with the job. Only the first one raises: a scheduler that preempts
     a job signals every process of it, and a batch script passes the signal on too, so a
     second SIGTERM often follows the first within milliseconds; raised again, it would
     cut short the unwinding that the first one started.
+
+    A signal that lands inside a gradient update waits for the update to end, and
+    :class:`StopOnSignal` raises it at the next env step: torch's optimizers write their
+    state key by key (Adam: ``step``, then ``exp_avg``, then ``exp_avg_sq``), and a model
+    saved between two keys cannot be resumed (``KeyError: 'exp_avg'`` at the first update
+    after the resume). Waiting costs at most one update.
     """
     previous = {}
     received = _received
@@ -80,9 +87,11 @@ def stop_signals_interrupt() -> Iterator[None]:
         if received:
             return  # a repeat of the stop signal being obeyed
         received.append(signum)
+        if _inside_update(frame):
+            return  # raised at the next env step, once the update is whole
         raise Interrupted(signum)
 
-    for sig in (signal.SIGTERM, signal.SIGHUP):
+    for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
         previous[sig] = signal.signal(sig, handler)
     try:
         yield
@@ -90,6 +99,23 @@ def stop_signals_interrupt() -> Iterator[None]:
         for sig, old in previous.items():
             signal.signal(sig, old)
         received.clear()
+
+
+#: where a gradient update runs: torch's optimizers, and the algorithms' ``train``
+_UPDATE_PATHS = ("/torch/optim/", "/stable_baselines3/", "/sb3_contrib/")
+
+
+def _inside_update(frame: Any) -> bool:
+    """Whether the interrupted code is a gradient update (see :func:`stop_signals_interrupt`)."""
+    while frame is not None:
+        code = frame.f_code
+        path = code.co_filename.replace(os.sep, "/")
+        if _UPDATE_PATHS[0] in path:
+            return True
+        if code.co_name == "train" and any(part in path for part in _UPDATE_PATHS[1:]):
+            return True
+        frame = frame.f_back
+    return False
 
 
 #: the stop signal received inside the current :func:`stop_signals_interrupt` block
