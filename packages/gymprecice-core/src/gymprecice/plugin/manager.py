@@ -132,10 +132,13 @@ def _disabled_selector(value: str | None) -> bool | frozenset[str]:
     return frozenset(_canonical(part) for part in value.split(",") if part.strip())
 
 
-def disabled_by_environment(names: list[str], dist: importlib.metadata.Distribution) -> bool:
-    """Whether ``GYMPRECICE_DISABLE_PLUGINS`` blocks a distribution's plugins: all of them,
-    or one of ``names`` (its entry-point names), or the distribution's own name."""
-    selector = _disabled_selector(os.environ.get(DISABLE_ENV_VAR))
+def disabled_by_environment(
+    names: list[str], dist: importlib.metadata.Distribution, disable: str | None = None
+) -> bool:
+    """Whether ``GYMPRECICE_DISABLE_PLUGINS`` (or ``disable``, in its form) blocks a
+    distribution's plugins: all of them, one of ``names`` (its entry-point names), or the
+    distribution's own name."""
+    selector = _disabled_selector(os.environ.get(DISABLE_ENV_VAR) if disable is None else disable)
     if isinstance(selector, bool):
         return selector
     dist_name = _dist_name(dist)
@@ -182,9 +185,6 @@ class GymPrecicePluginManager(pluggy.PluginManager):
         package must not stop environments of the others from working. Calling it again
         only picks up plugins not seen before. Returns how many plugins it registered.
         """
-        selector = _disabled_selector(
-            os.environ.get(DISABLE_ENV_VAR) if disable is None else disable
-        )
         count = 0
         for dist in list(importlib.metadata.distributions()):
             for ep in dist.entry_points:
@@ -198,24 +198,13 @@ class GymPrecicePluginManager(pluggy.PluginManager):
                     DEFAULT_PLUGIN_MODULE,
                     _DEFAULT_PLUGIN_HOME,
                 )
-                if not is_core and self._is_disabled(selector, ep.name, dist):
+                if not is_core and disabled_by_environment([ep.name], dist, disable):
                     continue
                 if self._load_entry_point(ep, dist):
                     count += 1
         count += self._ensure_default_plugin()
         self.loaded = True
         return count
-
-    @staticmethod
-    def _is_disabled(
-        selector: bool | frozenset[str], name: str, dist: importlib.metadata.Distribution
-    ) -> bool:
-        if isinstance(selector, bool):
-            return selector
-        dist_name = _dist_name(dist)
-        return _canonical(name) in selector or (
-            dist_name is not None and _canonical(dist_name) in selector
-        )
 
     def _load_entry_point(
         self, ep: importlib.metadata.EntryPoint, dist: importlib.metadata.Distribution
