@@ -189,6 +189,8 @@ def test_training_chooses_on_validation_starts_and_never_on_held_out_ones(tmp_pa
     assert list(evaluations["timesteps"]) == [10, 20]  # every checkpoint, the last one too
     best = int(np.argmax(evaluations["results"].mean(axis=1)))
     assert record["timesteps"] == [10, 20][best]
+    # one segment: its training time is its time from the command
+    assert record["seconds_of_training"] == pytest.approx(record["seconds_from_command"], abs=0.2)
 
 
 def test_time_to_floor_scans_the_kept_model_by_default(tmp_path):

@@ -64,6 +64,7 @@ def test_the_training_command_records_when_it_started_and_checkpoints_are_timed_
 ) -> None:
     manifest = json.loads((run / "manifest.json").read_text())
     started = manifest["segments"][0]["started_at"]
+    assert manifest["segments"][0]["finished_at"] > started
     found = checkpoints(run)
     assert [c.steps for c in found] == [8, 16]
     for c in found:

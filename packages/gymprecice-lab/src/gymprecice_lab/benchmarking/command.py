@@ -27,7 +27,8 @@ docs/benchmark.md on one environment, reusing the other commands for each piece:
    every solver step, the fractions of a drag floor), each with a 95 %
    stratified-bootstrap interval (:mod:`gymprecice_lab.benchmarking.stats`), into ``results.md``, ``results.csv`` and
    ``results.json`` (with each seed's restarts while it trained: envs re-created after a
-   lost Ray node or a failure, trainings re-run), and draw ``return_wallclock.png`` (training return against wall-clock,
+   lost Ray node or a failure, trainings re-run; and its training time and kept model:
+   step, validation score, time into training), and draw ``return_wallclock.png`` (training return against wall-clock,
    mean over seeds with a 95 % band) and ``objective_per_start.png``.
 
 Everything that decides the numbers is recorded in ``<out>/benchmark.json``; a rerun with
@@ -74,6 +75,7 @@ from gymprecice_lab.benchmarking.seed_training import (
     restarts,
     train_seed,
     trained,
+    training_record,
     worker_train_seed,
 )
 from gymprecice_lab.benchmarking.settings import lock_settings, settings_of
@@ -364,12 +366,19 @@ def _write_results(settings: BenchmarkSettings, plan: _Plan, controllers: list[d
     from gymprecice_lab.benchmarking.plots import plot_objective_per_start, plot_return_wallclock
 
     out = plan.out
-    seeds = {
-        f"{algo.upper()} seed {seed}": restarts(plan.run("train", algo, seed))
+    runs = {
+        f"{algo.upper()} seed {seed}": plan.run("train", algo, seed)
         for algo in plan.algos
         for seed in range(settings.seeds)
     }
-    write_tables(out, plan.env, plan.starts, controllers, seeds)
+    write_tables(
+        out,
+        plan.env,
+        plan.starts,
+        controllers,
+        {seed: restarts(run) for seed, run in runs.items()},
+        {seed: training_record(run) for seed, run in runs.items()},
+    )
     plot_return_wallclock(out, plan.algos, settings.seeds)
     plot_objective_per_start(
         out / "objective_per_start.png",

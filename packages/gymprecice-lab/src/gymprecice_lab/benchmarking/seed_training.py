@@ -15,11 +15,12 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from gymprecice_lab.benchmarking.checks import BenchmarkError
 from gymprecice_lab.common.command_runs import exit_status_of, parse_command
 
-__all__ = ["restarts", "train_seed", "trained", "worker_train_seed"]
+__all__ = ["restarts", "train_seed", "trained", "training_record", "worker_train_seed"]
 
 #: a seed's failed training attempts (a JSON list, one line of text each)
 FAILURES_FILE = "benchmark-failures.json"
@@ -107,6 +108,39 @@ def restarts(run: Path) -> dict[str, int]:
         "env_restarts": count(run / "workers" / ENV_FAILURES, str.splitlines),
         "training_reruns": count(run / FAILURES_FILE, json.loads),
     }
+
+
+def training_record(run: Path) -> dict[str, Any]:
+    """What a seed's training cost and kept: its steps and its training time (over its
+    segments, the gaps between them left out), and the kept model's step, validation
+    score and training time at its save (``kept`` ``None``: it kept none)."""
+    from gymprecice_lab.common.kept_model import RETURN_SCORE, read_kept
+    from gymprecice_lab.common.training_clock import total_training_seconds, training_seconds
+
+    try:
+        manifest = json.loads((run / "manifest.json").read_text())
+    except (OSError, ValueError):
+        manifest = {}
+    segments = manifest.get("segments") or []
+    total = total_training_seconds(segments)
+    record: dict[str, Any] = {
+        "timesteps": (manifest.get("result") or {}).get("timesteps"),
+        "segments": len(segments),
+        "training_seconds": None if total is None else round(total, 1),
+        "kept": None,
+    }
+    kept = read_kept(run)
+    if kept is not None:
+        seconds = kept.get("seconds_of_training")
+        if seconds is None and kept.get("saved_at") is not None:  # recorded before it
+            seconds = training_seconds(segments, float(kept["saved_at"]))
+        record["kept"] = {
+            "timesteps": kept.get("timesteps"),
+            "score": kept.get("score") or RETURN_SCORE,
+            "value": kept.get("mean_return"),
+            "training_seconds": None if seconds is None else round(float(seconds), 1),
+        }
+    return record
 
 
 def worker_train_seed(argv: list[str], run: str, label: str, retries: int) -> int:

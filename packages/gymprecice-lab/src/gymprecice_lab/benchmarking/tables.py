@@ -69,17 +69,50 @@ def _restarts_note(restarts: Mapping[str, Mapping[str, int]]) -> str:
     )
 
 
+def _clock(seconds: float | None) -> str:
+    if seconds is None:
+        return "an unknown time"
+    minutes = round(seconds / 60)
+    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
+
+
+def _training_note(training: Mapping[str, Mapping[str, Any]]) -> str:
+    """The line under the tables: each seed's training time and the model it kept."""
+    seeds = []
+    for seed, record in training.items():
+        steps = record.get("timesteps")
+        text = f"{seed}: {steps:,} steps" if steps is not None else f"{seed}:"
+        text += f" in {_clock(record.get('training_seconds'))}"
+        kept = record.get("kept")
+        if kept:
+            value = kept.get("value")
+            text += (
+                f", kept the model of step {int(kept['timesteps']):,} "
+                f"({str(kept['score']).replace('validation ', '')} {value:.4g} on validation), "
+                f"{_clock(kept.get('training_seconds'))} into training"
+                if value is not None
+                else ""
+            )
+        seeds.append(text)
+    return (
+        "Training per seed (wall-clock summed over a resumed run's segments, the gaps "
+        "between them left out): " + "; ".join(seeds) + "."
+    )
+
+
 def write_tables(
     out: Path,
     env: LabEnv,
     starts: Sequence[str],
     controllers: list[dict],
     restarts: Mapping[str, Mapping[str, int]] | None = None,
+    training: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> None:
     """``results.json`` (every score), ``results.csv`` and ``results.md``; ``restarts``:
     per seed (``"PPO seed 0"``), its env restarts and training re-runs
     (:func:`~gymprecice_lab.benchmarking.seed_training.restarts`), in the JSON and under the
-    tables."""
+    tables; ``training``: per seed, its training time and kept model
+    (:func:`~gymprecice_lab.benchmarking.seed_training.training_record`), the same."""
     metrics = list(dict.fromkeys(m for c in controllers for m in c["metrics"]))
     results: dict[str, Any] = {
         "env": env.env_id,
@@ -88,6 +121,8 @@ def write_tables(
     }
     if restarts is not None:
         results["restarts"] = {seed: dict(counts) for seed, counts in restarts.items()}
+    if training is not None:
+        results["training"] = {seed: dict(record) for seed, record in training.items()}
     (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
     fields = ["controller", "kind", "runs", "starts"]
     for m in metrics:
@@ -137,4 +172,6 @@ def write_tables(
             )
     if restarts:
         lines += ["", _restarts_note(restarts)]
+    if training:
+        lines += ["", _training_note(training)]
     (out / "results.md").write_text("\n".join(lines) + "\n")

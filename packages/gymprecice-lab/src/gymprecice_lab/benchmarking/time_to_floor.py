@@ -5,7 +5,8 @@ a cylinder's *drag floor*) says how far control can take its metric, from the un
 value to the floor; a run has *controlled the flow* once a policy takes most of that drop. This module finds, for a training run, the first
 checkpoint whose deterministic evaluation from **every** held-out start reaches a given
 fraction of the floor once settled (the mean over the starts), and the wall-clock from
-the start of the training command to that checkpoint's save.
+the start of the training command to that checkpoint's save (over a resumed run's
+segments, the gaps between them left out: :mod:`gymprecice_lab.common.training_clock`).
 
 The checkpoints are evaluated in the order they were saved, ``--workers`` at a time, and
 the scan stops at the first that reaches the highest fraction asked for: the answer is
@@ -32,7 +33,7 @@ import json
 import math
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -43,6 +44,7 @@ from gymprecice.plugin.card import Reference
 from gymprecice_lab.benchmarking.command_settings import TimeToFloorSettings
 from gymprecice_lab.common.command_runs import CommandFailed, evaluated, run_commands
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env
+from gymprecice_lab.common.training_clock import training_seconds
 from gymprecice_lab.rollouts.records import episodes_by_start
 
 __all__ = [
@@ -50,6 +52,7 @@ __all__ = [
     "RunScan",
     "candidates",
     "checkpoints",
+    "run_clock",
     "run_started",
     "scan_run",
     "time_to_floor_command",
@@ -122,6 +125,19 @@ def run_started(run: Path) -> float:
     raise FileNotFoundError(f"{run} is not a training run of `gymprecice train` (no manifest)")
 
 
+def run_clock(run: Path) -> Callable[[float], float]:
+    """Seconds of training of ``run`` at an epoch time: summed over its manifest's
+    segments, or, for a run trained before they were recorded, from :func:`run_started`."""
+    try:
+        segments = json.loads((run / "manifest.json").read_text()).get("segments") or []
+    except (OSError, ValueError, AttributeError):
+        segments = []
+    if any(s.get("started_at") is not None for s in segments):
+        return lambda at: float(training_seconds(segments, at) or 0.0)
+    started = run_started(run)
+    return lambda at: at - started
+
+
 def candidates(run: Path, which: str) -> list[Checkpoint]:
     """The models of ``run`` to scan: its kept model, its final one, or its checkpoints
     (``which``: ``kept``, ``final`` or ``checkpoints``)."""
@@ -129,7 +145,7 @@ def candidates(run: Path, which: str) -> list[Checkpoint]:
 
     if which == "checkpoints":
         return checkpoints(run)
-    started = run_started(run)
+    clock = run_clock(run)
     if which == "kept":
         record = read_kept(run)
         if record is None:
@@ -138,22 +154,22 @@ def candidates(run: Path, which: str) -> list[Checkpoint]:
                 "without validation; pass --model final or --model checkpoints"
             )
         saved = float(record.get("saved_at") or (run / KEPT_MODEL).stat().st_mtime)
-        return [Checkpoint(int(record["timesteps"]), run / KEPT_MODEL, saved - started)]
+        return [Checkpoint(int(record["timesteps"]), run / KEPT_MODEL, clock(saved))]
     final = run / "model.zip"
     if not final.is_file():
         raise FileNotFoundError(f"no final model.zip in {run}")
     steps = max((c.steps for c in checkpoints(run)), default=0)
-    return [Checkpoint(steps, final, final.stat().st_mtime - started)]
+    return [Checkpoint(steps, final, clock(final.stat().st_mtime))]
 
 
 def checkpoints(run: Path) -> list[Checkpoint]:
     """The run's checkpoints (``checkpoints/*_<steps>_steps.zip``), oldest first."""
-    started = run_started(run)
+    clock = run_clock(run)
     found = []
     for path in (run / "checkpoints").glob("*_steps.zip"):
         match = _STEPS.search(path.name)
         if match:
-            found.append(Checkpoint(int(match[1]), path, path.stat().st_mtime - started))
+            found.append(Checkpoint(int(match[1]), path, clock(path.stat().st_mtime)))
     return sorted(found, key=lambda c: c.steps)
 
 

@@ -52,7 +52,16 @@ def read_kept(run: Path) -> dict[str, Any] | None:
 def kept_summary(record: Mapping[str, Any]) -> str:
     """One line on a kept model: its step, score, starts and wall-clock."""
     seconds = record.get("seconds_from_command")
-    clock = "" if seconds is None else f", {clock_text(float(seconds))} after the command was typed"
+    trained = record.get("seconds_of_training")
+    if seconds is None:
+        clock = ""
+    elif trained is not None and abs(float(trained) - float(seconds)) > 1:
+        clock = (
+            f", after {clock_text(float(trained))} of training over the run's segments "
+            f"({clock_text(float(seconds))} after the resuming command)"
+        )
+    else:
+        clock = f", {clock_text(float(seconds))} after the command was typed"
     starts = record.get("starts") or []
     on = f"{len(starts)} validation start(s)" if starts else "validation"
     score = str(record.get("score") or RETURN_SCORE).replace("validation ", "")

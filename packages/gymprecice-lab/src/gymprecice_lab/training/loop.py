@@ -47,6 +47,7 @@ def train(
     n_eval_episodes: int | None = None,
     validate: bool = True,
     started_at: float | None = None,
+    trained_before: float = 0.0,
     resume: Path | None = None,
     vec_env: str = "auto",
     ray: str | None = None,
@@ -113,6 +114,7 @@ def train(
                 started_at,
                 vec_env="dummy" if ray is not None else vec_env,
                 training_vec=model.get_env(),
+                trained_before=trained_before,
             )
             callbacks.append(evaluator)
         callbacks += telemetry_callbacks(base)

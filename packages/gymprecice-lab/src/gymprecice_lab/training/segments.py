@@ -74,6 +74,9 @@ def record_segment(
     segment = {
         "argv": list(sys.argv),
         "started_at": started_at,
+        # when it ended: a resumed run's training time leaves out the gaps between
+        # segments (gymprecice_lab.common.training_clock)
+        "finished_at": None if result is None else round(time.time(), 3),
         "settings": settings,
         "seeds": seeds,
         "result": result,

@@ -47,6 +47,7 @@ from typing import Any
 from gymprecice_lab.common.kept_model import kept_summary
 from gymprecice_lab.common.registered_env import LabEnvError
 from gymprecice_lab.common.requirements import require_solvers
+from gymprecice_lab.common.training_clock import training_seconds
 from gymprecice_lab.common.wrapped_env import newest_checkpoint
 from gymprecice_lab.common.wrapping import WrapError
 from gymprecice_lab.model_based.settings import TRANSITIONS_FILE
@@ -127,6 +128,7 @@ def train_command(settings: TrainSettings) -> int:
         n_eval_episodes=settings.n_eval_episodes,
         validate=not settings.no_validation,
         started_at=started_at,
+        trained_before=training_seconds([*segments, {"started_at": started_at}], started_at) or 0.0,
         resume=resume[0] if resume else None,
         vec_env=settings.vec_env,
         ray=settings.ray,

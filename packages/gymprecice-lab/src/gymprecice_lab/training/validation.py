@@ -69,6 +69,7 @@ class _SaveBest(BaseCallback):
         started_at: float | None,
         score: str,
         episode_time: float | None,
+        trained_before: float = 0.0,
     ) -> None:
         super().__init__()
         self.out = out
@@ -77,6 +78,7 @@ class _SaveBest(BaseCallback):
         self.started_at = started_at
         self.score = score
         self.episode_time = episode_time
+        self.trained_before = trained_before
 
     def _on_step(self) -> bool:
         parent = self.parent
@@ -93,6 +95,12 @@ class _SaveBest(BaseCallback):
             "saved_at": round(now, 3),
             "seconds_from_command": (
                 round(now - self.started_at, 1) if self.started_at is not None else None
+            ),
+            # the same, over a resumed run's segments, the gaps between them left out
+            "seconds_of_training": (
+                round(self.trained_before + now - self.started_at, 1)
+                if self.started_at is not None
+                else None
             ),
         }
         kept = self.out / "best_model.zip"
@@ -123,13 +131,15 @@ def eval_callback(
     started_at: float | None = None,
     vec_env: str = "dummy",
     training_vec: Any = None,
+    trained_before: float = 0.0,
 ) -> EvalCallback:
     """The validation callback of a training run into ``out``.
 
     ``n_eval_episodes`` ``None`` runs each validation start once per validation. With
     ``agents`` (a shared policy) the validation env has one slot per agent, as the
     training env does: each of its episodes counts once per agent. ``started_at``
-    (epoch seconds) is when the command was typed, for the kept model's wall-clock.
+    (epoch seconds) is when the command was typed, for the kept model's wall-clock;
+    ``trained_before``, the seconds a resumed run trained in its earlier segments.
     Validation envs run side by side, one per training env at most
     (:func:`side_by_side`), in a vector env of kind ``vec_env`` (``--vec-env``): while
     they run, the training envs wait, so their cores are free.
@@ -197,6 +207,7 @@ def eval_callback(
             started_at,
             score_name(reference),
             float(episode_time) if episode_time is not None else None,
+            trained_before,
         ),
         n_eval_episodes=n_eval_episodes * max(1, len(agents)),
         eval_freq=max(1, eval_freq // slots),
