@@ -7,6 +7,7 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gymprecice_lab.benchmarking.time_to_floor import candidates, checkpoints
@@ -80,7 +81,14 @@ def test_a_benchmark_reports_each_seeds_training_time_and_kept_model(tmp_path) -
     (run / "best_model.zip").write_bytes(b"kept")
     kept = {"mean_return": 0.9, "timesteps": 8, "score": "settled", "saved_at": 1050.0}
     (run / "eval" / "best.json").write_text(json.dumps(kept))
+    assert training_record(run)["validations"] == []  # trained without them
+    np.savez(
+        run / "eval" / "evaluations.npz",
+        timesteps=np.array([8, 16]),
+        results=np.array([[0.8, 0.9], [0.7, 0.7]]),
+    )
     record = training_record(run)
+    assert record["validations"] == [[8, 0.85], [16, 0.7]]
     assert record["training_seconds"] == 300.0  # 100 s, then 200 s; not the 3,900 s gap
     assert record["segments"] == 2 and record["timesteps"] == 16
     # a record written before seconds_of_training: timed from its save by the segments

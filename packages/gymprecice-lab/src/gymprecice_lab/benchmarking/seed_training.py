@@ -112,8 +112,10 @@ def restarts(run: Path) -> dict[str, int]:
 
 def training_record(run: Path) -> dict[str, Any]:
     """What a seed's training cost and kept: its steps and its training time (over its
-    segments, the gaps between them left out), and the kept model's step, validation
-    score and training time at its save (``kept`` ``None``: it kept none)."""
+    segments, the gaps between them left out), its validations (each step and the mean
+    score over the validation starts: whether the budget was enough), and the kept
+    model's step, validation score and training time at its save (``kept`` ``None``: it
+    kept none)."""
     from gymprecice_lab.common.kept_model import RETURN_SCORE, read_kept
     from gymprecice_lab.common.training_clock import total_training_seconds, training_seconds
 
@@ -127,6 +129,7 @@ def training_record(run: Path) -> dict[str, Any]:
         "timesteps": (manifest.get("result") or {}).get("timesteps"),
         "segments": len(segments),
         "training_seconds": None if total is None else round(total, 1),
+        "validations": _validations(run),
         "kept": None,
     }
     kept = read_kept(run)
@@ -141,6 +144,21 @@ def training_record(run: Path) -> dict[str, Any]:
             "training_seconds": None if seconds is None else round(float(seconds), 1),
         }
     return record
+
+
+def _validations(run: Path) -> list[list[float]]:
+    """``[[step, mean score], ...]`` of the run's validations (``eval/evaluations.npz``,
+    SB3's record, kept across resumes); none for a run trained without them."""
+    import numpy as np
+
+    try:
+        with np.load(run / "eval" / "evaluations.npz") as data:
+            steps, results = data["timesteps"], data["results"]
+    except (OSError, ValueError, KeyError):
+        return []
+    return [
+        [int(step), round(float(np.mean(row)), 6)] for step, row in zip(steps, results, strict=True)
+    ]
 
 
 def worker_train_seed(argv: list[str], run: str, label: str, retries: int) -> int:
