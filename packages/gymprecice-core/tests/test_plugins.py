@@ -591,6 +591,50 @@ def test_a_plugin_module_imported_before_gymprecice_keeps_its_hooks(distribution
     assert result["obs"] == [0.5]
 
 
+SIBLING_FIRST_CHECK = """
+import json, warnings
+warnings.simplefilter("always")
+with warnings.catch_warnings(record=True) as caught:
+    from {package}.helpers import KIND  # a module of the plugin's package first
+    from gymprecice.plugin.manager import solver_kinds
+    kinds = solver_kinds()
+print(json.dumps({{"kinds": sorted(kinds), "warnings": [str(w.message) for w in caught]}}))
+"""
+
+
+def test_a_plugin_whose_package_is_imported_first_is_loaded_once_it_has_finished(
+    distribution,
+) -> None:
+    """A module of the plugin's own package imported first, which imports gymprecice at
+    its top: the plugin module, importing a name that module has not defined yet, fails
+    while gymprecice loads the plugins. It is loaded again at the next use of the plugin
+    manager, with its hooks and no warning (before, the plugin was skipped for the
+    process, as gymprecice-fenics was when ``gymprecice_fenics.solver_env`` came first)."""
+    package = _unique("sibling_pkg")
+    root = distribution("sibling-dist", {"sibling": f"{package}.plugin"}, {})
+    (root / package).mkdir()
+    (root / package / "__init__.py").write_text("")
+    (root / package / "helpers.py").write_text(
+        "from gymprecice.plugin import hookimpl  # imports gymprecice, which loads plugins\n"
+        "KIND = 'sibling-kind'\n"
+    )
+    (root / package / "plugin.py").write_text(
+        textwrap.dedent(
+            f"""
+            from gymprecice.plugin import hookimpl
+            from {package}.helpers import KIND
+
+            @hookimpl
+            def gymprecice_solver_kinds():
+                return {{KIND: "a kind from a plugin whose package came first"}}
+            """
+        )
+    )
+    result = _run_with(root, SIBLING_FIRST_CHECK.format(package=package))
+    assert "sibling-kind" in result["kinds"]
+    assert not [w for w in result["warnings"] if "sibling" in w], result["warnings"]
+
+
 DECLARED_CHECK = """
 import json
 import gymnasium

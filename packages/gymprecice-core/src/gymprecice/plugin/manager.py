@@ -30,7 +30,10 @@ module is the first thing a program imports, it is still half imported while
 it without them. So a plugin module met half imported is *deferred*: it is registered,
 and its environments with it (:mod:`gymprecice.plugin.registration`), at the next
 :func:`get_plugin_manager` call once its import has finished, which every use of a hook
-makes.
+makes. The same holds when another module of the plugin's package comes first
+(``from my_plugin.helpers import x``, with ``helpers`` importing gymprecice): the plugin
+module then fails on a name ``helpers`` has not defined yet, and is imported again once
+``helpers`` has finished.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from __future__ import annotations
 import difflib
 import importlib.metadata
 import os
+import sys
 import threading
 import warnings
 from collections.abc import Callable, Iterator
@@ -212,6 +216,13 @@ class GymPrecicePluginManager(pluggy.PluginManager):
         try:
             plugin = ep.load()
         except Exception as exc:
+            if _package_half_imported(ep):
+                # a module of the plugin's own package is being imported further up the
+                # stack (``from my_plugin.helpers import x`` before gymprecice), and the
+                # plugin module failed on a name it has not defined yet: load it again
+                # once that import has finished
+                self.deferred.append((ep, dist, None))
+                return False
             self._fail(ep.name, dist, f"cannot import {ep.value!r}: {type(exc).__name__}: {exc}")
             return False
         if _half_imported(plugin):
@@ -221,12 +232,25 @@ class GymPrecicePluginManager(pluggy.PluginManager):
         return self._register_loaded(ep, dist, plugin)
 
     def register_deferred(self) -> list[str]:
-        """Register the deferred plugins whose import has finished; their names."""
-        ready = [item for item in self.deferred if not _half_imported(item[2])]
+        """Register the deferred plugins whose import has finished; their names. A plugin
+        whose module failed to import while its package was half imported is imported
+        again now; failing again, it is reported as any broken plugin."""
+        ready = [item for item in self.deferred if not _still_importing(item)]
         if not ready:
             return []
-        self.deferred = [item for item in self.deferred if _half_imported(item[2])]
-        return [ep.name for ep, dist, plugin in ready if self._register_loaded(ep, dist, plugin)]
+        self.deferred = [item for item in self.deferred if _still_importing(item)]
+        names = []
+        for ep, dist, plugin in ready:
+            if plugin is None:
+                try:
+                    plugin = ep.load()
+                except Exception as exc:
+                    error = f"cannot import {ep.value!r}: {type(exc).__name__}: {exc}"
+                    self._fail(ep.name, dist, error)
+                    continue
+            if self._register_loaded(ep, dist, plugin):
+                names.append(ep.name)
+        return names
 
     def _register_loaded(
         self, ep: importlib.metadata.EntryPoint, dist: importlib.metadata.Distribution, plugin: Any
@@ -337,6 +361,23 @@ def _half_imported(plugin: Any) -> bool:
     spec ``_initializing`` until the module's code has run to the end)."""
     spec = getattr(plugin, "__spec__", None)
     return bool(getattr(spec, "_initializing", False))
+
+
+def _package_half_imported(ep: importlib.metadata.EntryPoint) -> bool:
+    """Whether a module of the entry point's top-level package is half imported."""
+    top = ep.value.split(":", 1)[0].strip().split(".", 1)[0]
+    return any(
+        _half_imported(module)
+        for name, module in list(sys.modules.items())
+        if name == top or name.startswith(f"{top}.")
+    )
+
+
+def _still_importing(item: tuple[Any, Any, Any]) -> bool:
+    """Whether a deferred plugin must wait on: its module, or, where its import failed,
+    a module of its package, is still half imported."""
+    ep, _, plugin = item
+    return _package_half_imported(ep) if plugin is None else _half_imported(plugin)
 
 
 def get_plugin_manager() -> GymPrecicePluginManager:
