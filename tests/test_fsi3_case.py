@@ -180,3 +180,57 @@ def test_a_jet_bound_that_is_not_positive_is_refused_before_any_case_is_written(
     with pytest.raises(ValueError, match="max_flow_rate must be positive"):
         TurekHronEnv(max_flow_rate=0.0, run_root=tmp_path)
     assert not any(tmp_path.iterdir())
+
+
+def _csm3(scale: float = 1.0) -> dict:
+    """A CSM3 record swinging at the published figures (``scale``: of the swing)."""
+    from gymprecice_tutorials.turek_hron.solid_checks import PUBLISHED_CSM
+
+    published = PUBLISHED_CSM["CSM3"]
+    t = np.arange(0.0, 10.0, 0.005)
+    phase = 2 * np.pi * published["dy_frequency"].value * t
+    record = {"test": "CSM3", "time": t.tolist()}
+    for signal in ("dx", "dy"):
+        mean = published[f"{signal}_mean"].value
+        amplitude = scale * published[f"{signal}_amplitude"].value
+        record[signal] = (mean + amplitude * np.cos(phase)).tolist()
+    return record
+
+
+def test_the_bars_checks_pass_at_the_published_values_and_only_there() -> None:
+    from gymprecice_tutorials.turek_hron.solid_checks import PUBLISHED_CSM, compare_csm
+
+    for test in ("CSM1", "CSM2"):
+        exact = {k: f.value for k, f in PUBLISHED_CSM[test].items()}
+        assert all(r["within"] for r in compare_csm({"test": test, **exact}).values())
+        soft = {k: 1.05 * v for k, v in exact.items()}  # 5 % more sag
+        assert not any(r["within"] for r in compare_csm({"test": test, **soft}).values())
+    rows = compare_csm(_csm3())
+    assert all(r["within"] for r in rows.values()), rows
+    damped = compare_csm(_csm3(scale=0.9))
+    assert not damped["dy_amplitude"]["within"] and damped["dy_frequency"]["within"]
+    # Turek & Hron (2006), tables 4 and 5
+    assert PUBLISHED_CSM["CSM1"]["dy"].value == pytest.approx(-66.10e-3)
+    assert PUBLISHED_CSM["CSM3"]["dy_frequency"].value == pytest.approx(1.0995)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [(["--tests", "CSM4"], "unknown ['CSM4']"), (["--cells", "36"], "two whole numbers")],
+)
+def test_the_bars_checks_refuse_bad_input_naming_it(argv, message, tmp_path) -> None:
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gymprecice_tutorials.turek_hron.solid_checks",
+            *argv,
+            "--out",
+            str(tmp_path / "runs"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+    assert not (tmp_path / "runs").exists()
