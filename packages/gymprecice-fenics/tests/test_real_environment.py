@@ -44,6 +44,16 @@ def test_dry_run_gives_the_scripts_coupling_vertices(make_fenics_solver) -> None
     np.testing.assert_allclose(geometry.coordinates[:, 1], 0.0)
 
 
+def test_a_script_importing_a_module_beside_it_dry_runs(make_fenics_solver) -> None:
+    """As ``python solid.py`` does, the dry run finds the script's own modules beside it
+    (FSI3's bar is ``bar.py`` beside ``solid.py``). Cost: about 2 s."""
+    solver = make_fenics_solver(python=Path(solver_env.fenics_python()))
+    script = solver.run_dir / "solid.py"
+    (solver.run_dir / "helper_beside.py").write_text("CELLS = 10\n")
+    script.write_text("import helper_beside\n" + script.read_text())
+    assert plugin.gymprecice_prepare_case(solver) is True
+
+
 def test_a_script_failing_at_import_is_named_with_its_error(make_fenics_solver) -> None:
     """Cost: about 2 s (two dry runs of the FEniCS interpreter)."""
     solver = make_fenics_solver(python=Path(solver_env.fenics_python()))

@@ -81,6 +81,8 @@ def main(script):
             os._exit(0)
 
     fenicsprecice.Adapter = DryRunAdapter
+    # as ``python SCRIPT`` does: the script's own modules beside it import
+    sys.path.insert(0, os.path.dirname(os.path.abspath(script)))
     try:
         runpy.run_path(script, run_name="__main__")
     except SystemExit:
