@@ -121,11 +121,32 @@ def test_a_runs_time_step_and_end_reach_every_file_that_holds_them() -> None:
     assert "fluid-openfoam/system/blockMeshDict" in files
     ramp = [k for k in files if k.endswith("/U") and "boundaryData" in k]
     assert len(ramp) == 42  # 0 to 2 s every 0.05 s, then held
+    assert not [k for k in files if k.startswith("solid-fenics/")]
+
+
+def test_a_run_with_the_fenics_bar_keeps_that_solid_and_its_settings() -> None:
+    files = case_files("coarse", time_step=0.002, end_time=3.0, degree=3, solid="fenics")
+    assert not [k for k in files if k.startswith("solid-dealii/")]
+    assert {"solid.py", "bar.py", "solid.json", "precice-adapter-config.json"} <= {
+        k.split("/", 1)[1] for k in files if k.startswith("solid-fenics/")
+    }
+    solid = json.loads(files["gymprecice-config.json"])["physics_simulation_engine"]["solvers"][
+        "solid"
+    ]
+    assert (solid["kind"], solid["path"], solid["options"]) == ("fenics", "solid-fenics", {})
+    assert json.loads(files["solid-fenics/solid.json"])["degree"] == 3
+    adapter = json.loads(files["solid-fenics/precice-adapter-config.json"])
+    xml = files["precice-config.xml"]  # the same data and meshes as the deal.II program's
+    assert adapter["participant_name"] == "Solid"
+    assert f'<read-data name="{adapter["interface"]["read_data_name"]}" mesh="Solid-Mesh" />' in xml
+    assert '<write-data name="Displacement" mesh="Solid-Mesh" />' in xml
+    assert xml.count('<time-window-size value="0.002" />') == 2
 
 
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
+        ({"solid": "calculix"}, "solid must be one of"),
         ({"resolution": "huge"}, "resolution must be one of"),
         ({"action_time": 0.0155}, "whole number of time windows"),
         ({"time_step": 0.0}, "must be positive"),

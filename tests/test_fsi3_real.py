@@ -72,3 +72,40 @@ def test_the_coupled_fsi3_run_goes_through_the_environment(tmp_path) -> None:
     )
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert "smoke run: every output in place" in result.stdout
+
+
+@pytest.mark.precice
+@pytest.mark.openfoam
+@pytest.mark.fenics
+@pytest.mark.slow
+@pytest.mark.timeout(400)
+def test_the_coupled_fsi3_run_goes_through_with_the_fenics_bar(tmp_path) -> None:
+    """The bar that restarts (tests/test_fsi3_solid_real.py) as the coupled solid: the
+    same 0.1 s. Cost: about a minute."""
+    from gymprecice_fenics import solver_env
+
+    missing = missing_coupled_stack("pimpleFoam", "blockMesh")
+    report = solver_env.probe()
+    if not report.ok:
+        missing += list(report.problems)
+    if missing:
+        pytest.skip("needs " + ", ".join(missing))
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gymprecice_tutorials.turek_hron.validate",
+            "--smoke",
+            "--solid",
+            "fenics",
+            "--out",
+            str(tmp_path / "runs"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=360,
+    )
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert "FEniCS solid" in result.stdout
+    assert "smoke run: every output in place" in result.stdout
+    assert list((tmp_path / "runs").glob("env_0/solid-fenics/precice-Solid-watchpoint-*.log"))

@@ -5,6 +5,11 @@ mesh of a resolution (:mod:`.mesh`), the inflow in time (``constant/boundaryData
 sets the time step and the simulated time in every file that holds them: the preCICE
 time window and max-time (both coupling schemes), the fluid's ``deltaT`` and the solid's
 ``Time step size`` and ``End time``, which the deal.II adapter requires to agree.
+
+Of the two solids in ``case/``, a run keeps one: the deal.II program (``solid-dealii/``,
+the default) or the FEniCS bar that saves and restarts its state (``solid-fenics/``,
+``solid.json`` its settings); both are participant ``Solid`` on ``Solid-Mesh``, so one
+``precice-config.xml`` serves either.
 """
 
 from __future__ import annotations
@@ -16,7 +21,10 @@ from gymprecice_tutorials.case_files import apply_edits
 from gymprecice_tutorials.turek_hron import CASE_DIR
 from gymprecice_tutorials.turek_hron.mesh import GEOMETRY, RESOLUTIONS, blockmesh_dict
 
-__all__ = ["INFLOW_MEAN", "RAMP_TIME", "case_files", "inflow", "inflow_files"]
+__all__ = ["INFLOW_MEAN", "RAMP_TIME", "SOLIDS", "case_files", "inflow", "inflow_files"]
+
+#: each solid's directory (the solver kind is the key)
+SOLIDS = {"dealii": "solid-dealii", "fenics": "solid-fenics"}
 
 #: Turek and Hron's mean inflow (m/s) for FSI3, and the time over which it is ramped up
 INFLOW_MEAN = 2.0
@@ -70,16 +78,19 @@ def case_files(
     end_time: float = 8.0,
     degree: int = 2,
     action_time: float = 0.02,
+    solid: str = "dealii",
 ) -> dict[str, str]:
     """The case's files (relative path -> text) for one run.
 
     ``resolution`` names a mesh of :data:`~.mesh.RESOLUTIONS`; ``time_step`` is the
     coupling's time window, the fluid's and the solid's step; ``end_time`` the simulated
     seconds; ``degree`` the solid's polynomial degree; an action lasts ``action_time``
-    (a whole number of time windows).
+    (a whole number of time windows); ``solid`` names one of :data:`SOLIDS`.
     """
     if resolution not in RESOLUTIONS:
         raise ValueError(f"resolution must be one of {sorted(RESOLUTIONS)}, got {resolution!r}")
+    if solid not in SOLIDS:
+        raise ValueError(f"solid must be one of {sorted(SOLIDS)}, got {solid!r}")
     if not (time_step > 0 and end_time > 0 and degree >= 1):
         raise ValueError("time_step and end_time must be positive and degree at least 1")
     windows = round(action_time / time_step)
@@ -87,10 +98,11 @@ def case_files(
         raise ValueError(
             f"action_time {action_time} s must be a whole number of time windows of {time_step} s"
         )
+    dropped = [f"{where}/" for kind, where in SOLIDS.items() if kind != solid]
     files: dict[str, str] = {}
     for path in sorted(CASE_DIR.rglob("*")):
         rel = path.relative_to(CASE_DIR).as_posix()
-        if path.is_file() and "__pycache__" not in rel:
+        if path.is_file() and "__pycache__" not in rel and not rel.startswith(tuple(dropped)):
             files[rel] = path.read_text()
     files[_MESH] = blockmesh_dict(RESOLUTIONS[resolution])
     files.update(inflow_files())
@@ -99,10 +111,13 @@ def case_files(
         (_XML, '<time-window-size value="0.001" />', f'<time-window-size value="{step}" />'),
         (_XML, '<max-time value="8.0" />', f'<max-time value="{end}" />'),
         (_CONTROL, "deltaT          0.001;", f"deltaT          {step};"),
-        (_PRM, "set Time step size  = 0.001", f"set Time step size  = {step}"),
-        (_PRM, "set End time        = 8", f"set End time        = {end}"),
-        (_PRM, "set Polynomial degree = 2", f"set Polynomial degree = {degree}"),
     ]
+    if solid == "dealii":
+        edits += [
+            (_PRM, "set Time step size  = 0.001", f"set Time step size  = {step}"),
+            (_PRM, "set End time        = 8", f"set End time        = {end}"),
+            (_PRM, "set Polynomial degree = 2", f"set Polynomial degree = {degree}"),
+        ]
     for rel, old, new in edits[:2]:  # both coupling schemes carry the window and the end
         if files[rel].count(old) != 2:
             raise ValueError(
@@ -113,5 +128,12 @@ def case_files(
     apply_edits(files, edits[2:], CASE_DIR, "gymprecice_tutorials.turek_hron.case", "edits")
     config = json.loads(files["gymprecice-config.json"])
     config["actions"]["windows"] = windows
+    if solid == "fenics":
+        solver = config["physics_simulation_engine"]["solvers"]["solid"]
+        # the deal.II program's options (its divergence bound) are not the script's
+        solver["kind"], solver["path"], solver["options"] = solid, SOLIDS[solid], {}
+        settings = json.loads(files[f"{SOLIDS[solid]}/solid.json"])
+        settings["degree"] = degree
+        files[f"{SOLIDS[solid]}/solid.json"] = json.dumps(settings) + "\n"
     files["gymprecice-config.json"] = json.dumps(config, indent=4) + "\n"
     return files

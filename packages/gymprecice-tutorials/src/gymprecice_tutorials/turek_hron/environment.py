@@ -13,7 +13,9 @@ damp the swing.
 * **Reward**: ``-mean |dy|`` over the time windows of the step (m).
 * **Episode end**: truncated at the coupling's max-time (``end_time``); no terminal
   state. Every episode starts from the fluid at rest, under the benchmark's ramped
-  inflow: the deal.II solid cannot start from a saved state.
+  inflow: the deal.II solid cannot start from a saved state. ``solid="fenics"`` runs the
+  FEniCS bar of ``case/solid-fenics/`` instead, which can (its coupled validation and
+  the starts from the swinging state are still to come).
 
 ``info["metrics"]`` holds the tip's displacement and the drag and lift on the cylinder,
 its jets and the bar (N per metre of depth, the benchmark's forces), the means over
@@ -63,6 +65,7 @@ class TurekHronEnv(Adapter):
         end_time: float = 8.0,
         degree: int = 2,
         action_time: float = 0.02,
+        solid: str = "dealii",
         max_flow_rate: float = MAX_FLOW_RATE,
         watch_timeout: float = 300.0,
         run_root: str | Path | None = None,
@@ -71,8 +74,8 @@ class TurekHronEnv(Adapter):
         if not max_flow_rate > 0:  # before anything is written or started
             raise ValueError(f"max_flow_rate must be positive, got {max_flow_rate}")
         if options is None:
-            files = case_files(resolution, time_step, end_time, degree, action_time)
-            name = f"turek-hron-fsi3-{resolution}"
+            files = case_files(resolution, time_step, end_time, degree, action_time, solid)
+            name = f"turek-hron-fsi3-{resolution}" + ("" if solid == "dealii" else f"-{solid}")
             options = write_case_files(name, files, run_root)
         super().__init__(options, idx, run_root=run_root, **kwargs)
         self.max_flow_rate = float(max_flow_rate)

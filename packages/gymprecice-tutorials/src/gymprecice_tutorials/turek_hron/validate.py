@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from gymprecice_openfoam.outputs import last_per_time
+from gymprecice_tutorials.turek_hron.case import SOLIDS
 from gymprecice_tutorials.turek_hron.mesh import RESOLUTIONS, cell_count
 from gymprecice_tutorials.turek_hron.reference import PUBLISHED, oscillation
 
@@ -53,6 +54,7 @@ def run_uncontrolled(
     end_time: float,
     degree: int,
     run_root: Path,
+    solid: str = "dealii",
 ) -> tuple[Series, float]:
     """The uncontrolled run's series at every time window, and its wall-clock (s)."""
     from gymprecice_tutorials.turek_hron.environment import TurekHronEnv
@@ -64,6 +66,7 @@ def run_uncontrolled(
         time_step=time_step,
         end_time=end_time,
         degree=degree,
+        solid=solid,
         run_root=run_root,
     )
     try:
@@ -218,6 +221,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--end-time", type=float, help=f"simulated seconds ({FULL_END:g})")
     parser.add_argument("--degree", type=int, default=2, help="the solid's polynomial degree")
     parser.add_argument("--window", type=float, default=WINDOW, help="the last seconds compared")
+    parser.add_argument(
+        "--solid",
+        choices=sorted(SOLIDS),
+        default="dealii",
+        help="the deal.II program, or the FEniCS bar that restarts (solid_checks)",
+    )
     parser.add_argument("--smoke", action="store_true", help=f"{SMOKE_END:g} s, no comparison")
     parser.add_argument("--out", type=Path, help="where the run is made (default: temporary)")
     parser.add_argument("--json", type=Path, help="write the comparison here (and .md beside)")
@@ -238,11 +247,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.smoke and not 0 < args.window < end:
         parser.error(f"--window must lie in (0, {end:g}) s, got {args.window:g}")
     root = args.out or Path(tempfile.mkdtemp(prefix="fsi3-validation-"))
-    series, seconds = run_uncontrolled(args.resolution, args.time_step, end, args.degree, root)
+    series, seconds = run_uncontrolled(
+        args.resolution, args.time_step, end, args.degree, root, args.solid
+    )
     cells = cell_count(RESOLUTIONS[args.resolution])
     setup = (
         f"FSI3, {args.resolution} mesh ({cells} cells), time step {args.time_step:g} s, "
-        f"solid degree {args.degree}, to t = {end:g} s"
+        f"{'deal.II' if args.solid == 'dealii' else 'FEniCS'} solid of degree {args.degree}, "
+        f"to t = {end:g} s"
     )
     print(setup)
     print(f"wall-clock: {seconds:.0f} s")
@@ -265,6 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "cells": cells,
             "time_step": args.time_step,
             "degree": args.degree,
+            "solid": args.solid,
             "end_time": end,
             "window": args.window,
             "reference": "Turek & Hron (2006), FSI3",

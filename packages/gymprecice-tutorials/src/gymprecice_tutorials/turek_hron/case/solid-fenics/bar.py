@@ -85,8 +85,10 @@ class Bar:
 
     ``cells``: triangles are made of ``(nx, ny)`` rectangles, each cut in four
     ("crossed", so the mesh is symmetric about the bar's axis). ``gravity``: the body
-    force per mass in -y (m/s^2). ``traction``: an expression of the load per reference
-    area on the wetted faces (the coupled fluid's stress), or None.
+    force per mass in -y (m/s^2). ``traction``: None, or a function that takes the bar's
+    function space and returns an expression of the load per reference area on its
+    faces (the coupled fluid's stress: fenicsprecice's coupling expression, which needs
+    the function space first).
     """
 
     def __init__(self, material, cells=(36, 4), degree=2, gravity=0.0, traction=None):
@@ -113,7 +115,7 @@ class Bar:
         residual += inner(self._first_piola(self.u), grad(w)) * dx
         residual -= rho * inner(self.gravity, w) * dx
         if traction is not None:
-            residual -= inner(traction, w) * ds
+            residual -= inner(traction(self.V), w) * ds
         problem = NonlinearVariationalProblem(
             residual, self.u, [self.bc], derivative(residual, self.u)
         )
@@ -175,19 +177,13 @@ class Bar:
         return tuple(float(c) for c in self.u_n(Point(*POINT_A)))
 
     def state(self):
-        """Copies of the state, for a coupling iteration's checkpoint."""
-        return (
-            self.u_n.copy(deepcopy=True),
-            self.v_n.copy(deepcopy=True),
-            self.a_n.copy(deepcopy=True),
-            self.time,
-        )
+        """The state's functions (displacement, velocity, acceleration), for a coupling
+        iteration's checkpoint (fenicsprecice copies them); the time goes beside."""
+        return [self.u_n, self.v_n, self.a_n]
 
-    def restore(self, state):
-        u, v, a, time = state
-        self.u_n.assign(u)
-        self.v_n.assign(v)
-        self.a_n.assign(a)
+    def restore(self, functions, time):
+        for mine, saved in zip((self.u_n, self.v_n, self.a_n), functions):
+            mine.assign(saved)
         self.time = time
 
     def save(self, path):

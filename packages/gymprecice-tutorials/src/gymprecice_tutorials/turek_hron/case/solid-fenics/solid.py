@@ -1,0 +1,75 @@
+"""FSI3's bar as preCICE participant ``Solid``, in legacy FEniCS through fenicsprecice.
+
+The bar of ``bar.py`` (St. Venant-Kirchhoff, Newmark) reads the fluid's ``Stress`` on
+its wetted faces (the long sides and the tip) as a traction per reference area, and
+writes its ``Displacement`` there, on preCICE's ``Solid-Mesh``: the same data, meshes
+and watch point (``Flap-Tip``, point A) as the deal.II program, so one
+``precice-config.xml`` serves either solid.
+
+``solid.json`` beside this script sets the run::
+
+    {"cells": [36, 4], "degree": 2,
+     "start_state": null,      # an .npz of Bar.save to start from (null: at rest)
+     "save_dir": null,         # where to save states (null: none)
+     "save_times": []}         # simulated times (s) to save the state at, and at the end
+
+A state saved at time t is ``<save_dir>/state-<t>.npz`` (t to the microsecond); the
+last one, at the end of the coupling, is ``<save_dir>/state-end.npz``.
+"""
+
+import json
+import os
+
+from bar import FSI3, Bar, wetted
+from dolfin import AutoSubDomain
+from fenicsprecice import Adapter
+
+with open("solid.json") as handle:
+    SETTINGS = json.load(handle)
+
+precice = Adapter(adapter_config_filename="precice-adapter-config.json")
+traction = None
+
+
+def coupling_traction(function_space):
+    """The fluid's stress on the wetted faces: fenicsprecice's coupling expression, made
+    once preCICE knows the coupling vertices of the bar's function space."""
+    global traction
+    precice.initialize(
+        AutoSubDomain(wetted), read_function_space=function_space, write_object=function_space
+    )
+    traction = precice.create_coupling_expression()
+    return traction
+
+
+bar = Bar(FSI3, tuple(SETTINGS["cells"]), SETTINGS["degree"], traction=coupling_traction)
+if SETTINGS.get("start_state"):
+    bar.load(SETTINGS["start_state"])
+save_dir = SETTINGS.get("save_dir")
+pending = sorted(float(t) for t in SETTINGS.get("save_times") or [])
+
+
+def save(name):
+    os.makedirs(save_dir, exist_ok=True)
+    bar.save(os.path.join(save_dir, name))
+
+
+while precice.is_coupling_ongoing():
+    if precice.requires_writing_checkpoint():
+        precice.store_checkpoint(bar.state(), bar.time, 0)
+    step = precice.get_max_time_step_size()
+    precice.update_coupling_expression(traction, precice.read_data(step))
+    bar.step(step)
+    precice.write_data(bar.u)
+    precice.advance(step)
+    if precice.requires_reading_checkpoint():
+        functions, time, _ = precice.retrieve_checkpoint()
+        bar.restore(functions, time)
+    else:
+        bar.advance(step)
+        while save_dir and pending and bar.time >= pending[0] - step / 2:
+            save(f"state-{pending.pop(0):.6f}.npz")
+
+if save_dir:
+    save("state-end.npz")
+precice.finalize()
