@@ -137,14 +137,36 @@ def test_the_readmes_results_table_is_the_one_the_result_files_give() -> None:
 
 def test_the_results_table_follows_a_changed_result_file(tmp_path: Path) -> None:
     shutil.copytree(macros.RESULTS, tmp_path / "results")
-    path = tmp_path / "results" / "benchmark-heated-plate-fast.json"
+    path = tmp_path / "results" / "benchmark-heated-plate-fast-tuned.json"
     data = json.loads(path.read_text())
     for entry in data["controllers"]:
         if entry["label"] == "SAC":
-            entry["metrics"]["mean_tracking_error"]["mean"]["value"] = 0.123
+            entry["metrics"]["objective"]["mean"]["value"] = 0.123
+            entry["metrics"]["objective"]["scores"][0] = [0.5, 0.5, 0.5]  # above the PID
     path.write_text(json.dumps(data))
-    assert "SAC 0.123 K" in macros.results_table(tmp_path / "results")
-    assert "SAC 0.123 K" not in macros.results_table()
+    table = macros.results_table(tmp_path / "results")
+    assert "4,000 actions 0.123 K" in table
+    assert "| 4 of 5 | PID 0.298 K |" in table  # the seed above the PID is counted out
+    assert "0.123 K" not in macros.results_table()
+
+
+def test_the_training_table_is_written_from_each_seeds_training_record(tmp_path: Path) -> None:
+    table = macros.training_table("jet-cylinder-fast-settled", "SAC", (1600, 4000))
+    lines = table.splitlines()
+    assert lines[0].startswith("| seed | held out | kept model: step |")
+    assert "validation at 1,600 | validation at 4,000 |" in lines[0]
+    assert len(lines) == 2 + 5  # a row per seed
+    shutil.copytree(macros.RESULTS, tmp_path / "results")
+    path = tmp_path / "results" / "benchmark-jet-cylinder-fast-settled.json"
+    data = json.loads(path.read_text())
+    data["training"]["SAC seed 0"]["kept"].update(timesteps=1234, training_seconds=61.0)
+    path.write_text(json.dumps(data))
+    row = macros.training_table("jet-cylinder-fast-settled", "SAC", (), tmp_path / "results")
+    assert "| 0 | 100.8 % | 1,234 | 97.2 % | 1 min 01 s |" in row
+    del data["training"]
+    path.write_text(json.dumps(data))
+    with pytest.raises(KeyError, match="records no training per seed"):
+        macros.training_table("jet-cylinder-fast-settled", "SAC", (), tmp_path / "results")
 
 
 def _readme_results_table() -> tuple[str, str]:

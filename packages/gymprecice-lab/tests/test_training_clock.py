@@ -101,6 +101,11 @@ def test_a_benchmark_reports_each_seeds_training_time_and_kept_model(tmp_path) -
     note = _training_note({"SAC seed 0": record})
     assert "SAC seed 0: 16 steps in 5 min, kept the model of step 8" in note
     assert "(settled 0.9 on validation), 1 min into training" in note
+    # a last segment recorded before finished_at: it ends at the manifest's last write
+    older = [SEGMENTS[0], {"started_at": 5000.0, "result": {"seconds": 150.0}}]
+    (run / "manifest.json").write_text(json.dumps({"segments": older}))
+    os.utime(run / "manifest.json", (5180.0, 5180.0))
+    assert training_record(run)["training_seconds"] == 280.0  # 100 s, then 180 s
     # still running: its end is not known yet
     (run / "manifest.json").write_text(json.dumps({"segments": SEGMENTS}))
     assert training_record(run)["training_seconds"] is None

@@ -121,10 +121,11 @@ def training_record(run: Path) -> dict[str, Any]:
 
     try:
         manifest = json.loads((run / "manifest.json").read_text())
+        written = (run / "manifest.json").stat().st_mtime  # its last write: the run's end
     except (OSError, ValueError):
-        manifest = {}
+        manifest, written = {}, None
     segments = manifest.get("segments") or []
-    total = total_training_seconds(segments)
+    total = total_training_seconds(segments, written)
     record: dict[str, Any] = {
         "timesteps": (manifest.get("result") or {}).get("timesteps"),
         "segments": len(segments),

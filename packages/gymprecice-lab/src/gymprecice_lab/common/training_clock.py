@@ -50,9 +50,14 @@ def training_seconds(segments: Sequence[Mapping[str, Any]], at: float) -> float 
     return total
 
 
-def total_training_seconds(segments: Sequence[Mapping[str, Any]]) -> float | None:
+def total_training_seconds(
+    segments: Sequence[Mapping[str, Any]], last_end: float | None = None
+) -> float | None:
     """The whole run's training time: every segment's, the gaps left out. ``None`` when
-    a segment's end is unknown (the last one still running, or killed without a record)."""
+    a segment's end is unknown (the last one still running, or killed without a record).
+    ``last_end`` (epoch seconds; the manifest's last write) ends a finished last segment
+    recorded before ``finished_at`` was, where its learning seconds would leave out its
+    set-up."""
     timed = sorted(
         (s for s in segments if s.get("started_at") is not None),
         key=lambda s: float(s["started_at"]),
@@ -65,5 +70,8 @@ def total_training_seconds(segments: Sequence[Mapping[str, Any]]) -> float | Non
         duration = _duration(segment, next_start)
         if duration is None:
             return None
+        finished = segment.get("result") is not None and segment.get("finished_at") is None
+        if next_start is None and last_end is not None and finished:
+            duration = max(duration, last_end - float(segment["started_at"]))
         total += max(0.0, duration)
     return total
