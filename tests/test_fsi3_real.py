@@ -57,21 +57,7 @@ def test_the_coupled_fsi3_run_goes_through_the_environment(tmp_path) -> None:
         missing.append("the deal.II-preCICE adapter (elasticity)")
     if missing:
         pytest.skip("needs " + ", ".join(missing))
-    result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "gymprecice_tutorials.turek_hron.validate",
-            "--smoke",
-            "--out",
-            str(tmp_path / "runs"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=360,
-    )
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    assert "smoke run: every output in place" in result.stdout
+    _smoke_run(tmp_path)
 
 
 @pytest.mark.precice
@@ -90,14 +76,19 @@ def test_the_coupled_fsi3_run_goes_through_with_the_fenics_bar(tmp_path) -> None
         missing += list(report.problems)
     if missing:
         pytest.skip("needs " + ", ".join(missing))
+    assert "FEniCS solid" in _smoke_run(tmp_path, "--solid", "fenics")
+    assert list((tmp_path / "runs").glob("env_0/solid-fenics/precice-Solid-watchpoint-*.log"))
+
+
+def _smoke_run(tmp_path, *options: str) -> str:
+    """``validate --smoke`` (0.1 s of FSI3) into ``tmp_path/runs``; its output."""
     result = subprocess.run(
         [
             sys.executable,
             "-m",
             "gymprecice_tutorials.turek_hron.validate",
             "--smoke",
-            "--solid",
-            "fenics",
+            *options,
             "--out",
             str(tmp_path / "runs"),
         ],
@@ -106,6 +97,5 @@ def test_the_coupled_fsi3_run_goes_through_with_the_fenics_bar(tmp_path) -> None
         timeout=360,
     )
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    assert "FEniCS solid" in result.stdout
     assert "smoke run: every output in place" in result.stdout
-    assert list((tmp_path / "runs").glob("env_0/solid-fenics/precice-Solid-watchpoint-*.log"))
+    return result.stdout

@@ -21,6 +21,14 @@ from typing import Any
 __all__ = ["total_training_seconds", "training_seconds"]
 
 
+def _timed(segments: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The segments that record their start, in the order they ran."""
+    return sorted(
+        (s for s in segments if s.get("started_at") is not None),
+        key=lambda s: float(s["started_at"]),
+    )
+
+
 def _duration(segment: Mapping[str, Any], next_start: float | None) -> float | None:
     start = float(segment["started_at"])
     if segment.get("finished_at") is not None:
@@ -34,10 +42,7 @@ def _duration(segment: Mapping[str, Any], next_start: float | None) -> float | N
 def training_seconds(segments: Sequence[Mapping[str, Any]], at: float) -> float | None:
     """Seconds of training up to epoch ``at``: every segment begun before ``at`` whole,
     the one running at ``at`` up to it. ``None`` when the segments record no start."""
-    timed = sorted(
-        (s for s in segments if s.get("started_at") is not None),
-        key=lambda s: float(s["started_at"]),
-    )
+    timed = _timed(segments)
     if not timed:
         return None
     total = 0.0
@@ -58,10 +63,7 @@ def total_training_seconds(
     ``last_end`` (epoch seconds; the manifest's last write) ends a finished last segment
     recorded before ``finished_at`` was, where its learning seconds would leave out its
     set-up."""
-    timed = sorted(
-        (s for s in segments if s.get("started_at") is not None),
-        key=lambda s: float(s["started_at"]),
-    )
+    timed = _timed(segments)
     if not timed:
         return None
     total = 0.0
