@@ -117,10 +117,11 @@ def training_record(run: Path) -> dict[str, Any]:
     model's step, validation score and training time at its save (``kept`` ``None``: it
     kept none)."""
     from gymprecice_lab.common.kept_model import RETURN_SCORE, read_kept
+    from gymprecice_lab.common.manifest import read_manifest
     from gymprecice_lab.common.training_clock import total_training_seconds, training_seconds
 
     try:
-        manifest = json.loads((run / "manifest.json").read_text())
+        manifest = read_manifest(run)
         written = (run / "manifest.json").stat().st_mtime  # its last write: the run's end
     except (OSError, ValueError):
         manifest, written = {}, None
