@@ -44,15 +44,14 @@ SLOW_MARKERS = ("slow",)
 DURATIONS_ENV = "GYMPRECICE_DURATIONS"
 #: What a real-stack test's docstring says about its cost: ``Cost: about 40 s (pimpleFoam)``.
 COST_LINE = re.compile(r"\bCost:\s*\S")
-#: How ``pytest -n 2 --dist loadgroup`` (scripts/test.sh; a scheduler of pytest-xdist's
-#: ``loadgroup`` kind, below, since its own does not see groups with pytest 9) shares the tests between its two
-#: workers: the real solvers' tests all on one worker, so that two solvers never compete for
-#: the two cores while the other worker takes the rest; the tests that start a Ray cluster on
-#: one worker too (two clusters at once would compete for the same ports and cores); a test
-#: that uses a module- or class-wide fixture with its module, so that the fixture is made
-#: once; every other test on its own, to whichever worker is free.
-SOLVER_GROUP = "real-solvers"
-SOLVER_MARKERS = ("openfoam", "dealii", "fenics")
+#: How ``pytest -n N --dist loadgroup`` (scripts/test.sh; a scheduler of pytest-xdist's
+#: ``loadgroup`` kind, below, since its own does not see groups with pytest 9) shares the
+#: tests between its workers: the tests that start a Ray cluster on one worker (two clusters
+#: at once would compete for the same ports and cores); a test that uses a module- or
+#: class-wide fixture with its module, so that the fixture is made once; every other test,
+#: the real solvers' among them, on its own, to whichever worker is free. A coupled run
+#: keeps about one core busy (its participants take turns), and most tests wait more than
+#: they compute, so the workers, not a group, bound how many solvers run at once.
 RAY_GROUP = "ray"
 RAY_FIXTURES = ("ray_cluster",)
 RAY_MODULES = ("tests/test_ray.py",)
@@ -148,9 +147,7 @@ def states_cost(item: pytest.Item) -> bool:
 
 
 def xdist_group(item: pytest.Item) -> str:
-    """The group of a test, run on one pytest-xdist worker (see ``SOLVER_GROUP``)."""
-    if any(item.get_closest_marker(m) for m in SOLVER_MARKERS):
-        return SOLVER_GROUP
+    """The group of a test, run on one pytest-xdist worker (see ``RAY_GROUP``)."""
     module = item.nodeid.split("::", 1)[0]
     if module in RAY_MODULES or any(f in RAY_FIXTURES for f in getattr(item, "fixturenames", ())):
         return RAY_GROUP

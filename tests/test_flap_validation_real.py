@@ -32,7 +32,7 @@ pytestmark = [
 
 
 def test_the_flaps_first_peak_matches_precices_published_series(tmp_path) -> None:
-    """Cost: 1.2 s of preCICE's setup (120 coupled windows), about a minute on 2 cores."""
+    """Cost: about a minute on 2 cores (1.2 s of preCICE's setup, 120 coupled windows)."""
     missing = missing_coupled_stack("pimpleFoam", "blockMesh")
     if not stack_which("elasticity"):
         missing.append("the deal.II-preCICE adapter (elasticity)")

@@ -170,8 +170,11 @@ def test_a_node_lost_while_a_benchmark_seed_trains_is_reported_in_its_results(
         f"PPO seed {k}": {"env_restarts": int(k == seed), "training_reruns": 0} for k in range(2)
     }
     assert json.loads((out / "results.json").read_text())["restarts"] == expected
-    note = (out / "results.md").read_text().splitlines()[-1]
-    assert note.startswith("Restarts while training, per seed")
+    (note,) = [
+        line
+        for line in (out / "results.md").read_text().splitlines()
+        if line.startswith("Restarts while training, per seed")
+    ]
     assert f"PPO seed {seed}: 1 env restart" in note
     assert f"PPO seed {1 - seed}: none" in note
     assert all((run / "model.zip").is_file() for run in runs)
