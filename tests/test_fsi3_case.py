@@ -189,10 +189,14 @@ def test_the_study_table_has_a_row_per_run_marking_the_figures_out_of_tolerance(
             "wall_clock_s": 600.0,
         }
 
-    table = study_table([record("coarse", 0.5), record("medium", 1.0)]).splitlines()
-    assert table[2].startswith("| published | | | 34.38 |")
-    assert table[3].startswith("| coarse | 4,808 | 0.002 | 17.19 (out) |")
+    fenics = {**record("coarse", 1.0), "solid": "fenics"}
+    rows = [record("coarse", 0.5), record("medium", 1.0), fenics]
+    table = study_table(rows).splitlines()
+    assert table[2].startswith("| published | | | | 34.38 |")
+    # a record written before the FEniCS bar names no solid: deal.II's
+    assert table[3].startswith("| coarse | deal.II | 4,808 | 0.002 | 17.19 (out) |")
     assert "(out)" not in table[4] and table[4].endswith("| 10 min |")
+    assert table[5].startswith("| coarse | FEniCS | 4,808 |")
 
 
 def test_a_jet_bound_that_is_not_positive_is_refused_before_any_case_is_written(tmp_path):

@@ -292,3 +292,50 @@ def test_validation_runs_beside_a_normalised_overlapped_learner(tmp_path):
         "env_1.monitor.csv",
     ]
     assert read_kept(run)["starts"] == ["t = 4.74 s", "t = 4.9 s"]
+
+
+def test_stop_at_ends_training_at_the_first_validation_reaching_it_and_a_rerun_trains_no_more(
+    tmp_path, monkeypatch, capsys
+):
+    """``--stop-at``: a score every validation reaches stops a 40-step SAC run of the flap
+    on the test double at its first validation (step 10), whose model is the kept one; the
+    manifest says so, the benchmark counts the seed as trained, and the same command
+    again trains no further. About 15 s."""
+    from gymprecice.tools.cli import main
+    from gymprecice_lab.benchmarking.seed_training import trained
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sac.yml").write_text(
+        "gymprecice/PerpendicularFlapFast-v0:\n  learning_starts: 4\n  batch_size: 8\n"
+        "  net: [16, 16]\n"
+    )
+    argv = [
+        *("train", "perpendicular-flap-fast", "--double"),
+        *("--env-kwargs", '{"episode_time": 0.5, "settle_time": 0.2}'),
+        *("--algo", "sac", "--hyperparams", "sac.yml", "--timesteps", "40"),
+        *("--checkpoint-every", "10", "--stop-at=-1e9"),
+        *("--vec-env", "dummy", "--no-progress-bar", "--out", "run"),
+    ]
+    assert main(argv) == 0
+    said = capsys.readouterr().out
+    run = tmp_path / "run"
+    assert "stopped: the validation at step 10 scored" in said
+    assert list(np.load(run / "eval" / "evaluations.npz")["timesteps"]) == [10]
+    result = json.loads((run / "manifest.json").read_text())["result"]
+    assert result["timesteps"] == 10
+    assert result["stopped_at"]["timesteps"] == read_kept(run)["timesteps"] == 10
+    assert trained(run, 40)
+
+    assert main(argv) == 0
+    assert "not training on" in capsys.readouterr().out
+    assert json.loads((run / "manifest.json").read_text())["result"]["timesteps"] == 10
+
+
+def test_stop_at_without_validation_is_refused_before_anything_runs(tmp_path, monkeypatch, capsys):
+    from gymprecice.tools.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    argv = ["train", "perpendicular-flap-fast", "--double", "--stop-at", "0.95"]
+    assert main([*argv, "--no-validation", "--out", "run"]) == 2
+    assert "--stop-at stops at a validation's score" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()

@@ -27,7 +27,8 @@ FAILURES_FILE = "benchmark-failures.json"
 
 
 def trained(run: Path, timesteps: int) -> bool:
-    """Whether ``run`` holds a finished training of at least ``timesteps`` steps."""
+    """Whether ``run`` holds a finished training: of at least ``timesteps`` steps, or
+    stopped by its ``--stop-at``."""
     try:
         result = json.loads((run / "manifest.json").read_text()).get("result") or {}
     except (OSError, ValueError):
@@ -35,7 +36,7 @@ def trained(run: Path, timesteps: int) -> bool:
     return (
         (run / "model.zip").is_file()
         and not result.get("interrupted")
-        and int(result.get("timesteps") or 0) >= timesteps
+        and (int(result.get("timesteps") or 0) >= timesteps or bool(result.get("stopped_at")))
     )
 
 

@@ -168,6 +168,17 @@ _KEEPING = (
         "time-to-floor take (None: at every checkpoint, and once more at the end)",
     ),
     option(
+        "--stop-at",
+        type=float,
+        default=None,
+        metavar="SCORE",
+        help="stop training at the first validation that scores SCORE or more (the score "
+        "the kept model is chosen on: the settled fraction of the drag floor where the "
+        "env's card declares one, e.g. 0.95, else the mean validation return); that model "
+        "is the kept one, and the same command again does not train on (None: train for "
+        "--timesteps)",
+    ),
+    option(
         "--n-eval-episodes",
         type=positive_int,
         default=None,

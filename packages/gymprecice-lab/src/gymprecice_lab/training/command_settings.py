@@ -49,6 +49,8 @@ class TrainSettings(EnvSettings):
     checkpoint_every: int | None
     keep_checkpoints: int
     eval_freq: int | None
+    #: ``--stop-at SCORE``: stop at the first validation scoring at least this
+    stop_at: float | None
     n_eval_episodes: int | None
     no_validation: bool
     #: ``--fresh``: start over even where ``--out`` has checkpoints

@@ -44,6 +44,7 @@ def train(
     checkpoint_every: int | None = None,
     keep_checkpoints: int = 5,
     eval_freq: int | None = None,
+    stop_at: float | None = None,
     n_eval_episodes: int | None = None,
     validate: bool = True,
     started_at: float | None = None,
@@ -69,6 +70,9 @@ def train(
     With ``validate`` (the default) the policy is scored from the env's validation starts
     every ``eval_freq`` env steps (default: at every checkpoint) and once more at the end,
     and the best is kept as ``best_model.zip`` (:mod:`gymprecice_lab.training.validation`).
+    With ``stop_at`` training ends at the first validation that scores at least that
+    (SB3's ``StopTrainingOnRewardThreshold``), and a run whose kept model already does
+    trains no further: ``result["stopped_at"]`` records the step and the score.
     """
     from gymprecice_lab.training.callbacks import (
         hold_stop_signals,
@@ -115,8 +119,15 @@ def train(
                 vec_env="dummy" if ray is not None else vec_env,
                 training_vec=model.get_env(),
                 trained_before=trained_before,
+                stop_at=stop_at,
             )
             callbacks.append(evaluator)
+            if _reached(evaluator, stop_at):
+                print(
+                    f"gymprecice train: the kept model already scores "
+                    f"{evaluator.best_mean_reward:.4g} >= --stop-at {stop_at:g}; not training on"
+                )
+                remaining = 0
         callbacks += telemetry_callbacks(base)
         started = time.monotonic()
         # a stop signal outside learning and the last validation waits for the save
@@ -128,9 +139,11 @@ def train(
                 )
             else:
                 interrupted = None
-                print(
-                    f"gymprecice train: already trained for {done_before:,} >= {timesteps:,} steps"
-                )
+                if not _reached(evaluator, stop_at):
+                    print(
+                        f"gymprecice train: already trained for {done_before:,} >= "
+                        f"{timesteps:,} steps"
+                    )
             if evaluator is not None and interrupted is None and not held:
                 interrupted = _validate_final(evaluator, validate_final)
             final = _save(model, vec, checkpoints, out, algo, normalize)
@@ -151,6 +164,7 @@ def train(
             "device": str(model.device),
             "interrupted": interrupted,
             "kept": _kept(out),
+            "stopped_at": _stopped_at(out, stop_at) if _reached(evaluator, stop_at) else None,
         }
     finally:
         merge_progress(out, segment)
@@ -178,6 +192,25 @@ def _validate_final(evaluator: Any, validate_final: Any) -> str | None:
             "the best of the earlier validations"
         )
     return None
+
+
+def _reached(evaluator: Any, stop_at: float | None) -> bool:
+    """Whether a validation has scored ``stop_at`` or more (``--stop-at``)."""
+    return stop_at is not None and evaluator is not None and evaluator.best_mean_reward >= stop_at
+
+
+def _stopped_at(out: Path, stop_at: float) -> dict[str, Any]:
+    """What the manifest records of a run stopped by ``--stop-at``: the threshold, and the
+    step and score of the kept model that reached it."""
+    from gymprecice_lab.common.kept_model import read_kept
+
+    record = read_kept(out) or {}
+    return {
+        "stop_at": stop_at,
+        "timesteps": record.get("timesteps"),
+        "score": record.get("score"),
+        "value": record.get("mean_return"),
+    }
 
 
 def _kept(out: Path) -> dict[str, Any] | None:

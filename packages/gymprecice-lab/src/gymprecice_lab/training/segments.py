@@ -45,6 +45,7 @@ def run_settings(
         "checkpoint_every": settings.checkpoint_every,
         "keep_checkpoints": settings.keep_checkpoints,
         "eval_freq": settings.eval_freq,
+        "stop_at": settings.stop_at,
         "n_eval_episodes": settings.n_eval_episodes,
         "validation": not settings.no_validation,
         "fresh": settings.fresh,

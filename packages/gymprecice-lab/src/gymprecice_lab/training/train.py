@@ -77,6 +77,13 @@ def train_command(settings: TrainSettings) -> int:
         print(f"gymprecice train: {exc}", file=sys.stderr)
         return 2
     out = settings.run_dir
+    if settings.stop_at is not None and settings.no_validation:
+        print(
+            "gymprecice train: --stop-at stops at a validation's score, and --no-validation "
+            "runs none: drop one of them",
+            file=sys.stderr,
+        )
+        return 2
     kwargs = settings.constructor_kwargs  # usage errors first: they cost nothing to find
     check_device(settings.device)
     solvers = solver_versions()
@@ -125,6 +132,7 @@ def train_command(settings: TrainSettings) -> int:
         checkpoint_every=settings.checkpoint_every,
         keep_checkpoints=settings.keep_checkpoints,
         eval_freq=settings.eval_freq,
+        stop_at=settings.stop_at,
         n_eval_episodes=settings.n_eval_episodes,
         validate=not settings.no_validation,
         started_at=started_at,
@@ -192,6 +200,12 @@ def _report(result: Mapping[str, Any], out: Path) -> int:
         f"gymprecice train: {result['timesteps']:,} steps; model {result['model']}; "
         f"TensorBoard: tensorboard --logdir {out / 'tb'}"
     )
+    stopped = result.get("stopped_at")
+    if stopped:
+        print(
+            f"gymprecice train: stopped: the validation at step {stopped['timesteps']:,} "
+            f"scored {stopped['value']:.4g} >= --stop-at {stopped['stop_at']:g}"
+        )
     kept = result.get("kept")
     if kept:
         print(f"gymprecice train: kept model {kept['model']}: {kept_summary(kept)}")

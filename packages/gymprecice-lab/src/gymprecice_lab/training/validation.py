@@ -34,7 +34,11 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
+from stable_baselines3.common.callbacks import (
+    BaseCallback,
+    EvalCallback,
+    StopTrainingOnRewardThreshold,
+)
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from gymprecice_lab.common.kept_model import KEPT_RECORD
@@ -132,6 +136,7 @@ def eval_callback(
     vec_env: str = "dummy",
     training_vec: Any = None,
     trained_before: float = 0.0,
+    stop_at: float | None = None,
 ) -> EvalCallback:
     """The validation callback of a training run into ``out``.
 
@@ -142,7 +147,8 @@ def eval_callback(
     ``trained_before``, the seconds a resumed run trained in its earlier segments.
     Validation envs run side by side, one per training env at most
     (:func:`side_by_side`), in a vector env of kind ``vec_env`` (``--vec-env``): while
-    they run, the training envs wait, so their cores are free.
+    they run, the training envs wait, so their cores are free. ``stop_at`` stops training
+    after the first validation whose score reaches it (the kept model is saved first).
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -213,6 +219,9 @@ def eval_callback(
         eval_freq=max(1, eval_freq // slots),
         log_path=str(out / "eval"),
         best_model_save_path=None,  # _SaveBest saves it whole
+        callback_after_eval=(
+            StopTrainingOnRewardThreshold(reward_threshold=stop_at) if stop_at is not None else None
+        ),
         deterministic=True,
         verbose=0,
     )

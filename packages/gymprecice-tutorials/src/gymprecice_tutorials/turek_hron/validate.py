@@ -163,6 +163,9 @@ def _plot(series: Series, window: float, path: Path) -> None:
     plt.close(fig)
 
 
+#: how the tables name each solid of :data:`~.case.SOLIDS`
+SOLID_NAMES = {"dealii": "deal.II", "fenics": "FEniCS"}
+
 #: the study's columns: a figure of :data:`~.reference.PUBLISHED` and its heading
 STUDY = (
     ("tip_dy_amplitude", "tip dy amplitude (mm)", 1e3),
@@ -177,18 +180,27 @@ STUDY = (
 def study_table(records: Sequence[dict[str, Any]]) -> str:
     """The mesh and time-step study: a row per run (a ``--json`` record), the published
     values first."""
-    head = ["run", "cells", "time step (s)", *(label for _, label, _ in STUDY), "wall-clock"]
+    head = [
+        "run",
+        "solid",
+        "cells",
+        "time step (s)",
+        *(label for _, label, _ in STUDY),
+        "wall-clock",
+    ]
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     published = [f"{scale * PUBLISHED[name].value:.4g}" for name, _, scale in STUDY]
-    lines.append("| published | | | " + " | ".join(published) + " | |")
+    lines.append("| published | | | | " + " | ".join(published) + " | |")
     for record in records:
         cells = [
             f"{scale * record['figures'][name]['run']:.4g}"
             + ("" if record["figures"][name]["within"] else " (out)")
             for name, _, scale in STUDY
         ]
+        solid = SOLID_NAMES[record.get("solid", "dealii")]  # records before the FEniCS bar
         lines.append(
-            f"| {record['resolution']} | {record['cells']:,} | {record['time_step']:g} | "
+            f"| {record['resolution']} | {solid} | {record['cells']:,} | "
+            f"{record['time_step']:g} | "
             + " | ".join(cells)
             + f" | {record['wall_clock_s'] / 60:.0f} min |"
         )
@@ -253,7 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     cells = cell_count(RESOLUTIONS[args.resolution])
     setup = (
         f"FSI3, {args.resolution} mesh ({cells} cells), time step {args.time_step:g} s, "
-        f"{'deal.II' if args.solid == 'dealii' else 'FEniCS'} solid of degree {args.degree}, "
+        f"{SOLID_NAMES[args.solid]} solid of degree {args.degree}, "
         f"to t = {end:g} s"
     )
     print(setup)
