@@ -151,6 +151,7 @@ def train(
             prune_checkpoints(checkpoints, algo, keep_checkpoints)
         if interrupted is None and held:
             interrupted = signal.Signals(held[0]).name
+        kept = _kept(out)
         return {
             "timesteps": int(model.num_timesteps),
             "timesteps_requested": timesteps,
@@ -163,8 +164,8 @@ def train(
             "checkpoint": str(final),
             "device": str(model.device),
             "interrupted": interrupted,
-            "kept": _kept(out),
-            "stopped_at": _stopped_at(out, stop_at) if _reached(evaluator, stop_at) else None,
+            "kept": kept,
+            "stopped_at": _stopped_at(kept, stop_at) if _reached(evaluator, stop_at) else None,
         }
     finally:
         merge_progress(out, segment)
@@ -199,17 +200,15 @@ def _reached(evaluator: Any, stop_at: float | None) -> bool:
     return stop_at is not None and evaluator is not None and evaluator.best_mean_reward >= stop_at
 
 
-def _stopped_at(out: Path, stop_at: float) -> dict[str, Any]:
+def _stopped_at(kept: Mapping[str, Any] | None, stop_at: float) -> dict[str, Any]:
     """What the manifest records of a run stopped by ``--stop-at``: the threshold, and the
-    step and score of the kept model that reached it."""
-    from gymprecice_lab.common.kept_model import read_kept
-
-    record = read_kept(out) or {}
+    step and score of the kept model (``kept``: its record) that reached it."""
+    kept = kept or {}
     return {
         "stop_at": stop_at,
-        "timesteps": record.get("timesteps"),
-        "score": record.get("score"),
-        "value": record.get("mean_return"),
+        "timesteps": kept.get("timesteps"),
+        "score": kept.get("score"),
+        "value": kept.get("mean_return"),
     }
 
 
