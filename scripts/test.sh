@@ -7,11 +7,9 @@
 # 1. Debian packages and .venv; ruff; then the fast tier: every test that needs neither the
 #    real stack nor much time (the preCICE test double's, the docs', the library's logic).
 #    A failure there stops the run before the real stack is built.
-#    .venv-rllib is built meanwhile, beside the fast tier: it shares no file with .venv, and
-#    unpacking its wheels fills the CPU the fast tier's workers leave idle.
-# 2. The real stack; RLlib's tests (in .venv-rllib); then the rest: the real-stack and slow
-#    tests, and every fast-tier test that skipped, run again now that the stack is there.
-#    The two tiers together are the whole suite (conftest.py).
+# 2. The real stack and .venv-rllib; RLlib's tests (in .venv-rllib); then the rest: the
+#    real-stack and slow tests, and every fast-tier test that skipped, run again now that
+#    the stack is there. The two tiers together are the whole suite (conftest.py).
 #
 # The sessions run on $GYMPRECICE_TEST_WORKERS processes (default 2, pytest-xdist; 1: none),
 # each test to whichever worker is free (conftest.py's groups keep a Ray cluster's tests, and
@@ -46,29 +44,8 @@ export GYMPRECICE_TIER_SKIPPED="$OUT/skipped-in-fast-tier.txt"
 
 bash scripts/setup.sh base
 lint
-RLLIB_PID=""
-if [ "${GYMPRECICE_SKIP_RLLIB:-0}" != "1" ]; then
-  RLLIB_LOG="$OUT/setup-rllib.log"
-  RLLIB_START=$SECONDS
-  # its own process group, so that a signal to this script stops pip with it
-  setsid bash scripts/setup-rllib.sh >"$RLLIB_LOG" 2>&1 &
-  RLLIB_PID=$!
-  # whatever ends this script, the build beside it ends first (never left running)
-  trap '[ -z "$RLLIB_PID" ] || wait "$RLLIB_PID" 2>/dev/null || true' EXIT
-  trap '[ -z "$RLLIB_PID" ] || kill -TERM -- "-$RLLIB_PID" 2>/dev/null; exit 143' TERM INT HUP
-fi
-fast=0
 GYMPRECICE_TIER=fast GYMPRECICE_DURATIONS="$OUT/durations-1-fast.json" \
-  "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"} || fast=$?
-if [ -n "$RLLIB_PID" ]; then
-  rllib=0
-  wait "$RLLIB_PID" || rllib=$?
-  RLLIB_PID=""
-  grep -v '^WARNING: Location' "$RLLIB_LOG" || true
-  if [ "$rllib" != 0 ]; then echo "test.sh: building .venv-rllib failed (above)" >&2; exit 1; fi
-  echo "test.sh: .venv-rllib ready in $((SECONDS - RLLIB_START)) s, built beside the fast tier"
-fi
-[ "$fast" = 0 ] || exit "$fast"
+  "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"}
 
 bash scripts/setup.sh stack
 # RLlib's tests run in their own environment (gymnasium 1.2.2), the rest on the newest.
