@@ -388,11 +388,40 @@ def test_a_seed_that_keeps_failing_stops_the_benchmark_without_a_table(
 # -- bad input, refused before anything trains ------------------------------------------------
 
 
-def test_zero_seeds_is_refused(capsys) -> None:
+@pytest.mark.timeout(600)
+def test_zero_seeds_run_the_classical_baselines_alone(tmp_path, monkeypatch, capsys) -> None:
+    """``--seeds 0``: the classical baselines on the held-out starts, in the same results
+    files as a whole benchmark, with nothing trained."""
+    monkeypatch.setattr(benchmark_training, "_train_once", _no_training)
+    out = tmp_path / "run"
+    argv = ["heated-plate-fast", "--double", "--seeds", "0", "--bootstrap-reps", "200"]
+    argv += ["--constants", "1", "--amplitudes", "0.5", "--frequencies", "0.5"]
+    assert main(["benchmark", *argv, "--feedback-grid", "kp=3;ki=25;kd=1", "--out", str(out)]) == 0
+    assert "the classical baselines alone from 3 held-out start" in capsys.readouterr().out
+    results = json.loads((out / "results.json").read_text())
+    kinds = [c["kind"] for c in results["controllers"]]
+    assert kinds == ["uncontrolled", "constant", "sinusoid", "feedback"]
+    for controller in results["controllers"]:
+        assert np.asarray(controller["metrics"]["objective"]["scores"]).shape == (1, 3)
+    assert (out / "objective_per_start.png").read_bytes().startswith(PNG_SIGNATURE)
+    assert not (out / "train").exists() and not (out / "return_wallclock.png").exists()
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (["--seeds", "-1"], "--seeds: must be at least 0, got -1"),
+        (["--seeds", "0", "--no-baselines"], "--seeds 0 --no-baselines leaves nothing to run"),
+        (["--seeds", "0", "--train-args", "--net 8,8"], "--train-args would be ignored"),
+    ],
+)
+def test_nothing_to_run_is_refused(tmp_path, capsys, flags, message) -> None:
+    out = tmp_path / "b"
     with pytest.raises(SystemExit) as exc:
-        main(["benchmark", "jet-cylinder-fast", "--double", "--seeds", "0"])
+        main(["benchmark", "jet-cylinder-fast", "--double", *flags, "--out", str(out)])
     assert exc.value.code == 2
-    assert "--seeds: must be at least 1, got 0" in capsys.readouterr().err
+    assert message in capsys.readouterr().err + str(exc.value.code)
+    assert not out.exists()
 
 
 class _Planned(Exception):

@@ -339,3 +339,15 @@ def test_stop_at_without_validation_is_refused_before_anything_runs(tmp_path, mo
     assert main([*argv, "--no-validation", "--out", "run"]) == 2
     assert "--stop-at stops at a validation's score" in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
+
+
+def test_every_command_writes_a_duration_the_same_way() -> None:
+    from gymprecice_lab.common.durations import duration_text
+
+    assert duration_text(45.4) == "45 s"
+    assert duration_text(545) == "9 min 05 s"
+    assert duration_text(3725) == "1 h 02 min 05 s"
+    assert duration_text(1090, to_the_minute=True) == "18 min"
+    assert duration_text(3725, to_the_minute=True) == "1 h 02 min"
+    assert duration_text(float("inf")) == "not reached"
+    assert duration_text(None) == "an unknown time"

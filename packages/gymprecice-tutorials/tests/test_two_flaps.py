@@ -275,6 +275,26 @@ def test_a_slot_carries_its_flow_rate_and_blows_or_sucks() -> None:
     assert not slot_velocity(faces.coordinates[:, 0], -1.35, 0.0).any()
 
 
+def test_the_tip_feedback_sets_each_slot_from_its_own_flap() -> None:
+    """The two flaps' classical law: each slot from its own flap's dx and vx only (the
+    other's, in the same row, does not move it), clipped to the slot's range, on the joint
+    env's action box; another box is refused with the env to run it on."""
+    from gymprecice_tutorials.two_flaps.feedback import TIP_LAW
+
+    space = gym.spaces.Box(-1.0, 1.0, shape=(2, 1), dtype=np.float32)  # TwoFlapsFast-v0's
+    law = TIP_LAW.build(space, {"kx": 50.0, "kv": 10.0})
+    obs = np.zeros((2, 9), dtype=np.float32)
+    obs[0, [0, 2]] = [0.01, 0.02]  # upstream: bent 1 cm, moving 2 cm/s downstream
+    obs[1, [0, 2]] = [-0.001, 0.5]  # downstream: moving fast, so its slot saturates
+    obs[:, 6:8] = 9.0  # the neighbour's tip, which the law does not read
+    action = law(obs, 0.0)
+    assert action.shape == (2, 1) and space.contains(action)
+    np.testing.assert_allclose(action[:, 0], [-(0.5 + 0.2), -1.0], rtol=1e-6)
+    assert TIP_LAW.label({"kx": -50.0, "kv": 30.0}) == "tip-kx-50-kv30"
+    with pytest.raises(ValueError, match="run it on TwoFlapsFast-v0"):
+        TIP_LAW.build(gym.spaces.Box(-1.0, 1.0, shape=(1,)), {"kx": 0.0, "kv": 0.0})
+
+
 def test_the_training_case_is_the_packaged_case_with_its_edits() -> None:
     files = fast_case_files(4.0)
     xml = files["precice-config.xml"]

@@ -248,6 +248,7 @@ def environments() -> tuple[tuple[str, str, EnvCard], ...]:
                 held_out_starts=True,
                 validation_starts=True,
                 uncontrolled={"uncontrolled": True},
+                feedback_law="gymprecice_tutorials.two_flaps.feedback:TIP_LAW",
                 double=True,
                 episode_time=True,
                 open_loop_frequency=0.6,

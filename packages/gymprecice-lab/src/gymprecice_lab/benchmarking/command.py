@@ -121,9 +121,14 @@ def benchmark_command(settings: BenchmarkSettings) -> int:
     recorded = settings_of(settings, plan.env, plan.algos, plan.extra)
     recorded["held_out_starts"] = list(plan.starts)
     lock_settings(plan.out, recorded, settings.fresh)
+    what = (
+        f"{', '.join(a.upper() for a in plan.algos)} x {settings.seeds} seed(s), "
+        f"{settings.timesteps:,} steps each, evaluated"
+        if settings.seeds
+        else "the classical baselines alone"
+    )
     print(
-        f"gymprecice benchmark: {plan.env.name}: {', '.join(a.upper() for a in plan.algos)} x "
-        f"{settings.seeds} seed(s), {settings.timesteps:,} steps each, evaluated from "
+        f"gymprecice benchmark: {plan.env.name}: {what} from "
         f"{describe_starts(len(plan.starts), plan.env.held_out_starts)}; output in {plan.out}",
         flush=True,
     )
@@ -153,7 +158,14 @@ def _plan(settings: BenchmarkSettings) -> _Plan | int:
         env = settings.lab_env
     except LabEnvError as exc:
         raise BenchmarkError(str(exc)) from None
-    algos = parse_algorithms(settings.algo)
+    if not settings.seeds and settings.no_baselines:
+        raise BenchmarkError(
+            "--seeds 0 --no-baselines leaves nothing to run: --seeds 0 runs the classical "
+            "baselines alone; give --seeds N to train N seeds"
+        )
+    if not settings.seeds and settings.train_args:
+        raise BenchmarkError("--seeds 0 trains nothing, so --train-args would be ignored")
+    algos = parse_algorithms(settings.algo) if settings.seeds else []
     extra = parse_train_args(settings.train_args, algos)
     out = settings.run_dir
     settings = resolve_feedback(settings, env)
@@ -379,7 +391,8 @@ def _write_results(settings: BenchmarkSettings, plan: _Plan, controllers: list[d
         {seed: restarts(run) for seed, run in runs.items()},
         {seed: training_record(run) for seed, run in runs.items()},
     )
-    plot_return_wallclock(out, plan.algos, settings.seeds)
+    if settings.seeds:
+        plot_return_wallclock(out, plan.algos, settings.seeds)
     plot_objective_per_start(
         out / "objective_per_start.png",
         plan.starts,
@@ -391,5 +404,6 @@ def _write_results(settings: BenchmarkSettings, plan: _Plan, controllers: list[d
     print((out / "results.md").read_text())
     print(
         f"gymprecice benchmark: wrote {out / 'results.md'}, results.csv, results.json, "
-        "return_wallclock.png and objective_per_start.png"
+        + ("return_wallclock.png and " if settings.seeds else "")
+        + "objective_per_start.png"
     )

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from gymprecice_lab.benchmarking.scores import STATISTICS
+from gymprecice_lab.common.durations import duration_text
 from gymprecice_lab.common.registered_env import LabEnv
 from gymprecice_lab.common.starts import describe_starts
 
@@ -69,27 +70,20 @@ def _restarts_note(restarts: Mapping[str, Mapping[str, int]]) -> str:
     )
 
 
-def _clock(seconds: float | None) -> str:
-    if seconds is None:
-        return "an unknown time"
-    minutes = round(seconds / 60)
-    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
-
-
 def _training_note(training: Mapping[str, Mapping[str, Any]]) -> str:
     """The line under the tables: each seed's training time and the model it kept."""
     seeds = []
     for seed, record in training.items():
         steps = record.get("timesteps")
         text = f"{seed}: {steps:,} steps" if steps is not None else f"{seed}:"
-        text += f" in {_clock(record.get('training_seconds'))}"
+        text += f" in {duration_text(record.get('training_seconds'), to_the_minute=True)}"
         kept = record.get("kept")
         if kept:
             value = kept.get("value")
             text += (
                 f", kept the model of step {int(kept['timesteps']):,} "
                 f"({str(kept['score']).replace('validation ', '')} {value:.4g} on validation), "
-                f"{_clock(kept.get('training_seconds'))} into training"
+                f"{duration_text(kept.get('training_seconds'), to_the_minute=True)} into training"
                 if value is not None
                 else ""
             )

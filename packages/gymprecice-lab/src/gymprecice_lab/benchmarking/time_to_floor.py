@@ -43,6 +43,7 @@ import numpy as np
 from gymprecice.plugin.card import Reference
 from gymprecice_lab.benchmarking.command_settings import TimeToFloorSettings
 from gymprecice_lab.common.command_runs import CommandFailed, evaluated, run_commands
+from gymprecice_lab.common.durations import duration_text
 from gymprecice_lab.common.registered_env import LabEnv, LabEnvError, find_lab_env
 from gymprecice_lab.common.training_clock import training_seconds
 from gymprecice_lab.rollouts.records import episodes_by_start
@@ -278,13 +279,6 @@ def median_time(seconds: Sequence[float], reps: int = 2000) -> dict[str, Any]:
     }
 
 
-def _clock(seconds: float) -> str:
-    if not math.isfinite(seconds):
-        return "not reached"
-    minutes, rest = divmod(round(seconds), 60)
-    return f"{minutes} min {rest:02d} s"
-
-
 def summarise(scans: Sequence[RunScan], fractions: Sequence[float]) -> dict[str, Any]:
     """Per fraction: each run's seconds and steps, and the median with its interval."""
     out: dict[str, Any] = {}
@@ -413,7 +407,7 @@ def _say_model(run: Path, scan: RunScan, which: str) -> None:
     starts = ", ".join(f"{v:.1%}" for v in row["per_start"])
     print(
         f"gymprecice time-to-floor: {run.name}: the {which} model ({row['steps']:,} steps, saved "
-        f"{_clock(row['seconds'])} after the training command started): "
+        f"{duration_text(row['seconds'])} after the training command started): "
         f"{row['settled_floor_fraction']:.1%} of the floor once settled, the mean over "
         f"{len(row['per_start'])} held-out start(s) ({starts})"
     )
@@ -425,10 +419,10 @@ def _say_first(run: Path, scan: RunScan, fractions: list[float]) -> None:
         row = scan.first_reaching(fraction)
         model = "checkpoint" if scan.which == "checkpoints" else f"the {scan.which} model,"
         where = (
-            f"{model} {row['steps']:,} steps, {_clock(row['seconds'])} after the "
+            f"{model} {row['steps']:,} steps, {duration_text(row['seconds'])} after the "
             "training command started"
             if row
-            else f"not within its {scan.last_steps:,} steps ({_clock(scan.last_seconds)})"
+            else f"not within its {scan.last_steps:,} steps ({duration_text(scan.last_seconds)})"
         )
         print(f"gymprecice time-to-floor: {run.name}: {fraction:.0%} of the floor: {where}")
 
@@ -439,6 +433,6 @@ def _say_medians(summary: dict[str, Any], fractions: list[float]) -> None:
         s = summary[f"{fraction:g}"]
         print(
             f"gymprecice time-to-floor: {fraction:.0%} of the floor: median "
-            f"{_clock(s['median'])} [{_clock(s['low'])}, {_clock(s['high'])}] over "
+            f"{duration_text(s['median'])} [{duration_text(s['low'])}, {duration_text(s['high'])}] over "
             f"{s['runs']} runs"
         )

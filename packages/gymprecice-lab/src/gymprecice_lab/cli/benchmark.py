@@ -68,9 +68,10 @@ def _benchmark() -> Command:
             o.env_argument("; evaluated from its held-out starts, else from seeds"),
             option(
                 "--seeds",
-                type=positive_int,
+                type=o.non_negative_int,
                 default=5,
-                help="training seeds per algorithm (0..N-1)",
+                help="training seeds per algorithm (0..N-1; 0: the classical baselines "
+                "alone, nothing trained)",
             ),
             o.ALGO.but(choices=None, help=f"algorithms, comma-separated ({', '.join(ALGORITHMS)})"),
             o.TIMESTEPS.but(

@@ -15,6 +15,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from gymprecice_lab.common.durations import duration_text
+
 __all__ = [
     "FINAL",
     "KEPT",
@@ -57,11 +59,11 @@ def kept_summary(record: Mapping[str, Any]) -> str:
         clock = ""
     elif trained is not None and abs(float(trained) - float(seconds)) > 1:
         clock = (
-            f", after {clock_text(float(trained))} of training over the run's segments "
-            f"({clock_text(float(seconds))} after the resuming command)"
+            f", after {duration_text(float(trained))} of training over the run's segments "
+            f"({duration_text(float(seconds))} after the resuming command)"
         )
     else:
-        clock = f", {clock_text(float(seconds))} after the command was typed"
+        clock = f", {duration_text(float(seconds))} after the command was typed"
     starts = record.get("starts") or []
     on = f"{len(starts)} validation start(s)" if starts else "validation"
     score = str(record.get("score") or RETURN_SCORE).replace("validation ", "")
@@ -69,12 +71,6 @@ def kept_summary(record: Mapping[str, Any]) -> str:
         f"best on {on} ({score} {float(record['mean_return']):.4g}) at step "
         f"{int(record['timesteps']):,}{clock}"
     )
-
-
-def clock_text(seconds: float) -> str:
-    """``"9 min 05 s"``: a wall-clock duration as the commands print it."""
-    minutes, rest = divmod(round(seconds), 60)
-    return f"{minutes} min {rest:02d} s" if minutes else f"{rest} s"
 
 
 def choose_model(run: Path, which: str = KEPT) -> tuple[Path, str] | None:
