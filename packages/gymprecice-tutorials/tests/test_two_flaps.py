@@ -126,6 +126,25 @@ def test_uncontrolled_closes_both_slots_after_the_gust(tmp_path: Path) -> None:
         env.close()
 
 
+def test_base_damping_adds_the_classical_law_to_each_action(tmp_path: Path) -> None:
+    """``base_damping=KV``: each slot is ``-KV vx`` of its own flap's tip (the velocity
+    the agent saw) plus its action, clipped; an action of 0 is the law alone."""
+    env = _double(tmp_path, base_damping=30.0)
+    try:
+        obs, _ = env.reset(seed=0, options={"split": "eval"})
+        for action in (0.0, 0.25):
+            seen = {agent: float(obs[agent][2]) for agent in env.agents}
+            obs, _, _, _, infos = env.step(_act(env, action))
+            for agent, vx in seen.items():
+                slot = np.clip(action - 30.0 * vx, -1.0, 1.0) * env.jet_max_velocity
+                assert infos[agent]["action"] == [pytest.approx(slot, abs=1e-5)]
+        assert any(abs(vx) > 1e-4 for vx in seen.values())  # the law had a motion to damp
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="base_damping is a gain >= 0"):
+        _double(tmp_path, base_damping=-1.0)
+
+
 def test_a_held_out_start_out_of_range_is_refused(tmp_path: Path) -> None:
     env = _double(tmp_path)
     try:

@@ -149,6 +149,8 @@ class TwoFlapsEnv(MultiAgentAdapter):
         self._step_rows: dict[str, np.ndarray] = {}
         #: each agent's slot mean velocity (m/s) in the last window written
         self.jet_velocity = dict.fromkeys(self.possible_agents, 0.0)
+        #: each flap's tip ``(dx, dy, vx, vy, sx, sy)`` at the last observation
+        self.tip_state: dict[str, np.ndarray] = {}
 
     # -- rendering ---------------------------------------------------------------------------
     @property
@@ -204,6 +206,7 @@ class TwoFlapsEnv(MultiAgentAdapter):
                 )
             self._step_rows[flap.agent] = tip.wait_until(self.time, self.watch_timeout)
             state[flap.agent] = self._tip_state(flap, tip)
+        self.tip_state = state
         obs = {}
         for flap in FLAPS:
             if flap.agent not in self.agents:

@@ -7,9 +7,10 @@ the 5 m/s flow (nu = 1e-3 m²/s), and the fluid barely damps them: after the imp
 the upstream tip swings between 0 and 0.035 m, the downstream one, in its wake, between
 -0.03 and 0.02 m, for seconds. Each agent's slot moves its flap's load by about ±20 % at
 full blowing or suction (10 m/s), so a constant setting only moves the centre of a swing;
-taking energy out of it means blowing while the tip moves downstream and sucking while it
-comes back, which needs the tip's state. The objective is each flap's own mean tip
-displacement; the agents share a policy.
+taking energy out of it means sucking while the tip moves downstream and blowing while it
+comes back (a load against the motion), which needs the tip's state: the classical law
+that does it (:mod:`.feedback`) takes a fifth off the uncontrolled swing. The objective
+is each flap's own mean tip displacement; the agents share a policy.
 
 What a start is
 ---------------
@@ -128,6 +129,10 @@ class TwoFlapsFastEnv(TwoFlapsEnv):
       ``settle_time`` gust (default 1 s); every agent truncated at the end.
     * ``uncontrolled=True``: after the gust both slots are closed (the tutorial's plain
       floor) whatever the actions: the run a controller is judged against.
+    * ``base_damping=KV`` (s/m): each slot is the classical damping law's setting,
+      ``-KV vx`` of its flap's tip velocity, plus the agent's action, clipped to the
+      slot's range: a policy that learns a residual on top of the textbook controller
+      starts from it (an action of 0 is the law). 0, the default: the action alone.
     * ``double=True``: the same env against gymprecice's preCICE test double and two
       scripted flaps (:mod:`gymprecice_tutorials.two_flaps.double`), no solvers needed.
     """
@@ -140,6 +145,7 @@ class TwoFlapsFastEnv(TwoFlapsEnv):
         episode_time: float = 3.0,
         settle_time: float = 1.0,
         uncontrolled: bool = False,
+        base_damping: float = 0.0,
         double: bool = False,
         run_root: str | Path | None = None,
         **kwargs: Any,
@@ -164,6 +170,9 @@ class TwoFlapsFastEnv(TwoFlapsEnv):
             for jet, faces in flaps_double.training_slots().items():
                 self.set_interface_vertices(jet, faces.coordinates)
         self.uncontrolled = bool(uncontrolled)
+        if not (np.isfinite(base_damping) and base_damping >= 0):
+            raise ValueError(f"base_damping is a gain >= 0 (s/m), got {base_damping}")
+        self.base_damping = float(base_damping)
         self.start: Gust | None = None
         self._split: str = "train"
         self._split_seed: int | None = None
@@ -230,8 +239,16 @@ class TwoFlapsFastEnv(TwoFlapsEnv):
         )
 
     def _slot_mean_velocity(self, agent: str, action: np.ndarray) -> float:
-        if self.uncontrolled and self.time >= self.settle_time - 1e-9:
+        """The slot's setting: the gust's before ``settle_time``; after it, the agent's
+        action, on top of the classical damping law's where ``base_damping`` is set (a
+        residual policy: the law's ``-base_damping * vx`` of the flap's tip, plus the
+        action, clipped to the slot's range), or closed where uncontrolled."""
+        controlled = self.time >= self.settle_time - 1e-9
+        if self.uncontrolled and controlled:
             return 0.0
+        if self.base_damping and controlled and agent in self.tip_state:
+            law = -self.base_damping * float(self.tip_state[agent][2])
+            action = np.asarray(action, dtype=float).reshape(-1)[:1] + law
         return super()._slot_mean_velocity(agent, action)
 
     def _initial_actions(self) -> dict[str, np.ndarray]:
