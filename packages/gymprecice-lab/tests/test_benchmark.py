@@ -367,6 +367,39 @@ def test_an_algorithm_added_to_a_benchmark_trains_alone_and_joins_the_table(
     assert "cannot resume" in err and "train_args is" in err and "16,16" in err
 
 
+def test_seeds_added_to_a_benchmark_train_alone_and_join_the_table(
+    bench, tmp_path, monkeypatch, capsys
+) -> None:
+    """``--seeds 3`` on a benchmark of two: seed 2 trains, seeds 0 and 1 and the baselines
+    are kept; fewer seeds than were run is another setting, refused."""
+    import shutil
+
+    out = tmp_path / "run"
+    shutil.copytree(bench["out"], out)
+    real, trained = benchmark_training._train_once, []
+
+    def recording(argv: list[str]) -> int:
+        trained.append(argv[argv.index("--seed") + 1])
+        return real(argv)
+
+    monkeypatch.setattr(benchmark_training, "_train_once", recording)
+    more = [*TINY]
+    more[more.index("--seeds") + 1] = "3"
+    assert main(["benchmark", *more, "--out", str(out)]) == 0
+    assert "adding seed(s) 2; what seed(s) 0, 1 finished is kept" in capsys.readouterr().out
+    assert trained == ["2"]
+    learned = json.loads((out / "results.json").read_text())["controllers"][0]
+    assert learned["runs"] == 3
+    assert json.loads((out / "benchmark.json").read_text())["seeds"] == [0, 1, 2]
+
+    fewer = [*TINY]
+    fewer[fewer.index("--seeds") + 1] = "1"
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", *fewer, "--out", str(out)])
+    assert exc.value.code == 2
+    assert "cannot resume" in capsys.readouterr().err
+
+
 def test_a_seed_that_keeps_failing_stops_the_benchmark_without_a_table(
     tmp_path, monkeypatch, capsys
 ) -> None:

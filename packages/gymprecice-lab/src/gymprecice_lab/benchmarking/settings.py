@@ -66,7 +66,7 @@ def lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
         path.unlink(missing_ok=True)
     if path.is_file():
         original = _with_defaults(json.loads(path.read_text()))
-        saved = _with_added_algorithms(original, settings)
+        saved = _with_added_seeds(_with_added_algorithms(original, settings), settings)
         changed = [
             f"{key} is {json.dumps(settings.get(key))} now but {json.dumps(saved.get(key))} "
             f"in the benchmark being resumed"
@@ -79,11 +79,18 @@ def lock_settings(out: Path, settings: dict[str, Any], fresh: bool) -> None:
                 f"cannot resume {out} with other settings: {'; '.join(changed)}. Rerun with "
                 f"the settings in {path}, choose another --out, or add --fresh to start over"
             )
-        if saved is not original:
-            added = [a for a in settings["algos"] if a not in original["algos"]]
+        added = [a for a in settings["algos"] if a not in original["algos"]]
+        if added:
             print(
                 f"gymprecice benchmark: adding {', '.join(a.upper() for a in added)}; what "
                 f"{', '.join(a.upper() for a in original['algos'])} finished is kept",
+                flush=True,
+            )
+        seeds, old = settings.get("seeds") or [], original.get("seeds") or []
+        if len(seeds) > len(old):
+            print(
+                f"gymprecice benchmark: adding seed(s) {', '.join(map(str, seeds[len(old) :]))}; "
+                f"what seed(s) {', '.join(map(str, old))} finished is kept",
                 flush=True,
             )
     out.mkdir(parents=True, exist_ok=True)
@@ -98,6 +105,16 @@ def _with_defaults(saved: dict[str, Any]) -> dict[str, Any]:
     if isinstance(baselines, dict) and "centre" not in baselines:
         saved = {**saved, "baselines": {**baselines, "centre": 0.5}}
     return saved
+
+
+def _with_added_seeds(saved: dict[str, Any], settings: dict[str, Any]) -> dict[str, Any]:
+    """``saved`` as if it had named the seeds that ``settings`` adds after its own: more
+    seeds of the same benchmark keep every finished seed, evaluation and baseline (fewer
+    would drop finished ones from the table: refused as another setting)."""
+    seeds, old = settings.get("seeds") or [], saved.get("seeds") or []
+    if len(seeds) <= len(old) or seeds[: len(old)] != old:
+        return saved
+    return {**saved, "seeds": seeds}
 
 
 def _with_added_algorithms(saved: dict[str, Any], settings: dict[str, Any]) -> dict[str, Any]:
