@@ -182,12 +182,9 @@ def below(
     same env run without baselines against its baselines' file):
     ``below("perpendicular-flap-fast", "PPO", "best sinusoid")`` is ``18 %``. A figure a
     page would otherwise compute and type by hand."""
-
-    def value(file: str, label: str) -> float:
-        metric, statistic, _ = HEADLINES[file]
-        return float(_controller(file, label, results)["metrics"][metric][statistic]["value"])
-
-    ratio = value(env, controller) / value(other_env or env, other)
+    ratio = _headline_value(env, controller, results) / _headline_value(
+        other_env or env, other, results
+    )
     return f"{100.0 * (1.0 - ratio):.0f} %"
 
 
