@@ -6,7 +6,7 @@ number typed by hand::
 
     {{ cost("perpendicular-flap-fast") }}            1 h 1 min
     {{ shipped["perpendicular-flap-fast"].means.mean_mean_tip_displacement | round(4) }}
-    {{ score("jet-cylinder-fast", "SAC") }}          88.9 % [87.2 %, 92.7 %]
+    {{ score("history/jet-cylinder-fast", "SAC") }}  88.9 % [87.2 %, 92.7 %]
     {{ seed_means("two-flaps-fast", "SAC, shared policy") }}
     {{ time_to_floor("sac-overlap", 0.95).median }}  11 min 50 s
     {{ setup.fresh }}                                7 min 40 s
@@ -15,8 +15,11 @@ The figures come from:
 
 * ``packages/gymprecice-tutorials/src/gymprecice_tutorials/policies/*/policy.json``: each
   shipped policy's training run and evaluation, written by ``gymprecice ship-policy``;
-* ``docs/results/benchmark-<env>.json``: ``gymprecice benchmark``'s ``results.json``
-  (the headline controllers of each environment's benchmark);
+* ``docs/results/benchmark-<key>.json``: ``gymprecice benchmark``'s ``results.json``
+  (the headline controllers of each environment's benchmark), every score per seed and
+  start; ``docs/results/history/benchmark-<key>.json``, the key ``history/<key>``: the
+  headline summaries of earlier recipes' benchmarks, written before a results file kept
+  every score (:func:`benchmark_path`);
 * ``docs/results/time-to-floor-jet-cylinder-fast-<recipe>.json``: the ``summary`` of
   ``gymprecice time-to-floor``'s ``time_to_floor.json``;
 * ``docs/results/setup.json``: the set-up's steps timed on a fresh machine.
@@ -49,9 +52,10 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
 POLICIES = ROOT / "packages" / "gymprecice-tutorials" / "src" / "gymprecice_tutorials" / "policies"
 
-#: each benchmark's headline metric, the statistic quoted and how a value is written
+#: each benchmark's headline metric, the statistic quoted and how a value is written, by
+#: its key (:func:`benchmark_path`): "history/..." are earlier recipes' headline summaries
 HEADLINES: dict[str, tuple[str, str, str]] = {
-    "jet-cylinder-fast": ("settled_floor_fraction", "median", "percent"),
+    "history/jet-cylinder-fast": ("settled_floor_fraction", "median", "percent"),
     # the kept models chosen on the settled drag: results.json as the benchmark wrote it
     "jet-cylinder-fast-settled": ("settled_floor_fraction", "median", "percent"),
     # the same with 8 gradient steps per batch (update-to-data ratio 4)
@@ -59,11 +63,11 @@ HEADLINES: dict[str, tuple[str, str, str]] = {
     # 16,000 actions, the kept models: results.json as the benchmark wrote it
     "rotating-cylinder-fast": ("settled_floor_fraction", "median", "percent"),
     # the first five seeds, 4,000 actions, final models: the headline figures only
-    "rotating-cylinder-fast-4k": ("settled_floor_fraction", "median", "percent"),
-    "perpendicular-flap-fast": ("mean_tip_displacement", "mean", "{:.4f} m"),
+    "history/rotating-cylinder-fast-4k": ("settled_floor_fraction", "median", "percent"),
+    "history/perpendicular-flap-fast": ("mean_tip_displacement", "mean", "{:.4f} m"),
     # SAC with scripts/flap-sac.yml: results.json as the benchmark wrote it
     "perpendicular-flap-fast-sac": ("objective", "mean", "{:.4f} m"),
-    "heated-plate-fast": ("mean_tracking_error", "mean", "{:.3f} K"),
+    "history/heated-plate-fast": ("mean_tracking_error", "mean", "{:.3f} K"),
     # observation="integral": results.json as the benchmark wrote it
     "heated-plate-fast-integral": ("objective", "mean", "{:.3f} K"),
     # the integral, and the recipe `gymprecice tune` found (scripts/plate-sac-tuned.yml)
@@ -78,6 +82,21 @@ HEADLINES: dict[str, tuple[str, str, str]] = {
     # the shared policy on top of the damping law (base_damping=20), its kept models
     "two-flaps-fast-residual": ("objective", "mean", "{:.5f} m"),
 }
+
+
+def benchmark_path(key: str, results: Path = RESULTS) -> Path:
+    """The results file of the benchmark ``key``: ``results/benchmark-{key}.json``; a key
+    ``folder/name`` is ``results/folder/benchmark-{name}.json``, so that
+    ``history/jet-cylinder-fast`` is ``docs/results/history/benchmark-jet-cylinder-fast.json``
+    (an earlier recipe's headline summary)."""
+    folder, _, name = key.rpartition("/")
+    return results / folder / f"benchmark-{name}.json"
+
+
+def _source(path: Path) -> str:
+    """``path`` as messages and figures name it: from the repository's root where it lies
+    in the repository (``docs/results/benchmark-two-flaps-fast.json``)."""
+    return str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
 
 
 def clock(seconds: float) -> str:
@@ -164,14 +183,15 @@ def score(
 
 
 def _controller(env: str, controller: str, results: Path) -> dict[str, Any]:
-    """A controller's entry in ``benchmark-{env}.json``: a baseline by its kind ("best
-    sinusoid") or its whole label ("best sinusoid: sine-...")."""
-    data = _load(results / f"benchmark-{env}.json")
+    """A controller's entry in the benchmark ``env``'s results file: a baseline by its kind
+    ("best sinusoid") or its whole label ("best sinusoid: sine-...")."""
+    path = benchmark_path(env, results)
+    data = _load(path)
     for entry in data["controllers"]:
         if entry["label"] == controller or entry["label"].startswith(f"{controller}: "):
             return entry
     labels = [entry["label"] for entry in data["controllers"]]
-    raise KeyError(f"docs/results/benchmark-{env}.json has no controller {controller!r}: {labels}")
+    raise KeyError(f"{_source(path)} has no controller {controller!r}: {labels}")
 
 
 def below(
@@ -180,7 +200,7 @@ def below(
     """How far one benchmarked controller's headline value lies below another's, in per
     cent of the other's, from the same results file or ``other_env``'s (a benchmark of the
     same env run without baselines against its baselines' file):
-    ``below("perpendicular-flap-fast", "PPO", "best sinusoid")`` is ``18 %``. A figure a
+    ``below("history/perpendicular-flap-fast", "PPO", "best sinusoid")`` is ``18 %``. A figure a
     page would otherwise compute and type by hand."""
     ratio = _headline_value(env, controller, results) / _headline_value(
         other_env or env, other, results
@@ -193,7 +213,8 @@ def seed_means(env: str, controller: str, results: Path = RESULTS) -> str:
     order: ``0.230, 0.230, 0.243, 0.307 and 0.252 K``; from a results file that keeps
     every score (the newer form)."""
     metric, _, how = HEADLINES[env]
-    data = _load(results / f"benchmark-{env}.json")
+    path = benchmark_path(env, results)
+    data = _load(path)
     for entry in data["controllers"]:
         if entry["label"] == controller:
             means = [sum(row) / len(row) for row in entry["metrics"][metric]["scores"]]
@@ -201,7 +222,7 @@ def seed_means(env: str, controller: str, results: Path = RESULTS) -> str:
             unit = texts[-1].split(" ", 1)[1] if " " in texts[-1] else ""
             numbers = [t.split(" ", 1)[0] for t in texts]
             return f"{', '.join(numbers[:-1])} and {numbers[-1]}" + (f" {unit}" if unit else "")
-    raise KeyError(f"docs/results/benchmark-{env}.json has no controller {controller!r}")
+    raise KeyError(f"{_source(path)} has no controller {controller!r}")
 
 
 def _validation_at(curve: list[list[float]], steps: int) -> float | None:
@@ -222,10 +243,11 @@ def training_table(
     training and the whole training's; with ``at``, the validation score at those steps
     (was the budget enough?)."""
     metric, _, how = HEADLINES[env]
-    data = _load(results / f"benchmark-{env}.json")
+    path = benchmark_path(env, results)
+    data = _load(path)
     records = data.get("training")
     if not records:
-        raise KeyError(f"docs/results/benchmark-{env}.json records no training per seed")
+        raise KeyError(f"{_source(path)} records no training per seed")
     scores = _controller(env, controller, results)["metrics"][metric]["scores"]
     algo = controller.split(",", 1)[0]
     head = [
@@ -301,7 +323,7 @@ class Figure(NamedTuple):
     text: str
     #: the file that holds it, from the repository's root
     source: str
-    #: the macro that writes it: ``score("jet-cylinder-fast", "SAC")``
+    #: the macro that writes it: ``score("history/jet-cylinder-fast", "SAC")``
     macro: str
     #: the ways a page could type it by hand
     pattern: re.Pattern[str]
@@ -362,15 +384,11 @@ def headline_figures(results: Path = RESULTS, policies: Path = POLICIES) -> list
     policies' training times and the set-up's total times. A duration is one only when it
     has two parts (``11 min 50 s``): ``16 s`` alone is too common to tell apart."""
     figures: list[Figure] = []
-
-    def name(path: Path) -> str:
-        return str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
-
     for env in HEADLINES:
-        path = results / f"benchmark-{env}.json"
+        path = benchmark_path(env, results)
         metric, _, how = HEADLINES[env]
         for entry in _load(path)["controllers"]:
-            figures += _score_figures(env, entry, results, name(path))
+            figures += _score_figures(env, entry, results, _source(path))
             if entry["runs"] > 1 and "scores" in entry["metrics"][metric]:
                 # each seed's mean, in seed order: "0.230, 0.230, 0.243, 0.307 and 0.252 K"
                 text = seed_means(env, entry["label"], results)
@@ -378,13 +396,13 @@ def headline_figures(results: Path = RESULTS, policies: Path = POLICIES) -> list
                 first, rest = text.removesuffix(f" {unit}").split(", ", 1)
                 pattern = re.compile(f"{_number(first)}, {re.escape(rest)}(?:{_UNITS[unit]})?")
                 macro = f'seed_means("{env}", "{entry["label"]}")'
-                figures.append(Figure(text, name(path), macro, pattern))
+                figures.append(Figure(text, _source(path), macro, pattern))
 
     def durations(source: Path, quoted: dict[str, str]) -> None:
         """The durations of ``source``, by the macro that writes each."""
         for macro, text in quoted.items():
             if text.count(" ") >= 3:  # two parts: "9 min 57 s", "1 h 1 min"
-                figures.append(Figure(text, name(source), macro, _clock_pattern(text)))
+                figures.append(Figure(text, _source(source), macro, _clock_pattern(text)))
 
     for path in sorted(results.glob("time-to-floor-jet-cylinder-fast-*.json")):
         recipe = path.stem.removeprefix("time-to-floor-jet-cylinder-fast-")
@@ -435,8 +453,8 @@ class ResultRow(NamedTuple):
     higher_is_better: bool
 
 
-#: the results table's rows, each file docs/results/benchmark-<file>.json; the variants
-#: and earlier recipes are on the benchmark page
+#: the results table's rows, each naming its results files by key (:func:`benchmark_path`);
+#: the variants and earlier recipes are on the benchmark page
 RESULT_ROWS: list[ResultRow] = [
     ResultRow(
         "jet cylinder: share of the drag floor once settled (higher is better)",
@@ -496,7 +514,8 @@ def seeds_better(row: ResultRow, results: Path = RESULTS) -> str:
     metric, _, _ = HEADLINES[env]
     scores = _controller(env, label, results)["metrics"][metric].get("scores")
     if not scores:
-        raise KeyError(f"docs/results/benchmark-{env}.json keeps no score per seed of {label!r}")
+        path = _source(benchmark_path(env, results))
+        raise KeyError(f"{path} keeps no score per seed of {label!r}")
     _, classical_env, classical_label = row.classical
     classical = _headline_value(classical_env, classical_label, results)
     means = [sum(seed) / len(seed) for seed in scores]

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import math
 import re
 import shutil
 import sys
@@ -79,15 +80,15 @@ def test_a_rerun_changes_every_quoted_figure(tmp_path: Path) -> None:
     """Copying a new results file over the old one is all a rerun needs."""
     results = tmp_path / "results"
     shutil.copytree(macros.RESULTS, results)
-    assert macros.score("jet-cylinder-fast", "SAC", results).startswith("88.9 % [")
-    path = results / "benchmark-jet-cylinder-fast.json"
+    assert macros.score("jet-cylinder-fast-utd4", "SAC", results).startswith("96.8 % [")
+    path = results / "benchmark-jet-cylinder-fast-utd4.json"
     data = json.loads(path.read_text())
     sac = next(c for c in data["controllers"] if c["label"] == "SAC")
     sac["metrics"]["settled_floor_fraction"]["median"] = {"value": 0.9, "low": 0.8, "high": 1.0}
     path.write_text(json.dumps(data))
-    assert macros.score("jet-cylinder-fast", "SAC", results) == "90.0 % [80.0 %, 100.0 %]"
+    assert macros.score("jet-cylinder-fast-utd4", "SAC", results) == "90.0 % [80.0 %, 100.0 %]"
     with pytest.raises(KeyError, match="no controller 'TD3'"):
-        macros.score("jet-cylinder-fast", "TD3", results)
+        macros.score("jet-cylinder-fast-utd4", "TD3", results)
     ttf = macros.time_to_floor("sac-overlap", 0.95, results)
     assert ttf == {
         "median": "11 min 50 s",
@@ -112,7 +113,7 @@ def test_a_quoting_page_does_not_type_its_figures(page: str) -> None:
         macros.shipped()["jet-cylinder-fast"]["training"],
         macros.time_to_floor("sac-overlap", 0.95)["median"],
         macros.setup_figures()["fresh"],
-        macros.score("jet-cylinder-fast", "SAC").split(" [")[0],
+        macros.score("history/jet-cylinder-fast", "SAC").split(" [")[0],
     ]
     found = [figure for figure in typed if figure in text]
     assert not found, f"{page} types {found}: quote them ({{{{ ... }}}}, scripts/docs_macros.py)"
@@ -169,6 +170,99 @@ def test_the_training_table_is_written_from_each_seeds_training_record(tmp_path:
         macros.training_table("jet-cylinder-fast-settled", "SAC", (), tmp_path / "results")
 
 
+def test_a_benchmark_key_names_its_results_file() -> None:
+    """A key is a file of docs/results/; ``history/<key>``, an earlier recipe's headline
+    summary in docs/results/history/. Every quoted key has its file, and a message names
+    the file it read."""
+    assert macros.benchmark_path("two-flaps-fast") == (
+        macros.RESULTS / "benchmark-two-flaps-fast.json"
+    )
+    assert macros.benchmark_path("history/jet-cylinder-fast") == (
+        macros.RESULTS / "history" / "benchmark-jet-cylinder-fast.json"
+    )
+    for key in macros.HEADLINES:
+        assert macros.benchmark_path(key).is_file(), f"{key}: no results file"
+    assert macros.score("history/jet-cylinder-fast", "SAC") == "88.9 % [87.2 %, 92.7 %]"
+    where = re.escape("docs/results/history/benchmark-jet-cylinder-fast.json")
+    with pytest.raises(KeyError, match=f"{where} has no controller 'TD3'"):
+        macros.score("history/jet-cylinder-fast", "TD3")
+
+
+#: the statistics each metric of a benchmark's results file gives, each with its interval
+STATISTICS = ("mean", "median", "iqm")
+#: the benchmarks' results files, every score per seed and start; and the headline
+#: summaries of earlier recipes, which keep no score
+BENCHMARKS = sorted(macros.RESULTS.glob("benchmark-*.json"))
+HISTORY = sorted((macros.RESULTS / "history").glob("benchmark-*.json"))
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def schema_problems(data: dict) -> list[str]:
+    """What a benchmark's results file lacks of the one schema (none when it keeps it):
+    each controller has ``label``, ``kind``, ``runs`` and ``metrics``; each metric its
+    ``scores``, a list per run of one score per held-out start, and its ``mean``,
+    ``median`` and ``iqm``, each with ``value``, ``low`` and ``high``. Other keys
+    (``restarts``, ``training``) may be there too."""
+    starts = data.get("held_out_starts")
+    if not isinstance(starts, list) or not starts:
+        return ["no list of held_out_starts"]
+    controllers = data.get("controllers")
+    if not isinstance(controllers, list) or not controllers:
+        return ["no list of controllers"]
+    problems = []
+    for entry in controllers:
+        label = entry.get("label", "a controller")
+        missing = [key for key in ("label", "kind", "runs", "metrics") if key not in entry]
+        if missing:
+            problems.append(f"{label}: no {', '.join(missing)}")
+            continue
+        runs = entry["runs"]
+        if not isinstance(runs, int) or runs < 1 or not entry["metrics"]:
+            problems.append(f"{label}: runs {runs!r}, metrics {list(entry['metrics'])}")
+            continue
+        for metric, stats in entry["metrics"].items():
+            where = f"{label}, {metric}"
+            scores = stats.get("scores")
+            if not isinstance(scores, list) or len(scores) != runs:
+                problems.append(f"{where}: scores is not a list of {runs} runs")
+            elif not all(
+                isinstance(row, list) and len(row) == len(starts) and all(map(_is_number, row))
+                for row in scores
+            ):
+                problems.append(f"{where}: a run's scores are not one number per held-out start")
+            for name in STATISTICS:
+                stat = stats.get(name)
+                if not isinstance(stat, dict) or not all(
+                    _is_number(stat.get(key)) for key in ("value", "low", "high")
+                ):
+                    problems.append(f"{where}: no {name} with value, low and high")
+    return problems
+
+
+@pytest.mark.parametrize("path", BENCHMARKS, ids=lambda path: path.name)
+def test_every_benchmark_file_keeps_each_score_per_seed_and_start(path: Path) -> None:
+    problems = schema_problems(json.loads(path.read_text()))
+    assert not problems, f"{path.relative_to(ROOT)}: " + "; ".join(problems)
+
+
+def test_a_headline_summary_or_a_lost_score_fails_the_schema() -> None:
+    """The check can fail: on each earlier recipe's headline summary, and on a file of
+    the schema that loses one start's score."""
+    assert BENCHMARKS and HISTORY
+    for path in HISTORY:
+        problems = schema_problems(json.loads(path.read_text()))
+        assert any("scores is not a list" in problem for problem in problems), path.name
+    data = json.loads((macros.RESULTS / "benchmark-two-flaps-fast-residual.json").read_text())
+    assert not schema_problems(data)
+    metrics = data["controllers"][0]["metrics"]
+    next(iter(metrics.values()))["scores"][0].pop()
+    (problem,) = schema_problems(data)
+    assert "not one number per held-out start" in problem
+
+
 def _readme_results_table() -> tuple[str, str]:
     spec = importlib.util.spec_from_file_location(
         "readme_results", ROOT / "scripts" / "readme_results.py"
@@ -215,7 +309,7 @@ def test_no_page_types_a_figure_that_a_result_file_holds(page: str, figures: lis
 
 def test_every_result_file_has_its_headline_figures_looked_for(figures: list) -> None:
     sources = {figure.source for figure in figures}
-    for path in sorted(macros.RESULTS.glob("*.json")):
+    for path in sorted(macros.RESULTS.rglob("*.json")):
         name = str(path.relative_to(ROOT))
         if path.name.startswith(("benchmark-", "time-to-floor-", "setup")):
             assert name in sources, f"{name}: no headline figure is looked for"
@@ -231,7 +325,7 @@ render_macros: true
 SAC takes 88.9 % [87.2 %, 92.7 %] of the floor, PPO **89.7 [77.9, 95.2]**.
 The flap's policy trained in 1 h 1 min; seeds 0.230, 0.230, 0.243, 0.307 and 0.252 K.
 The heated plate's PID: 0.298 K. 95 % in a median of 11 min 50 s.
-Quoted, not typed: {{ score("jet-cylinder-fast", "SAC") }}, {{ cost("two-flaps-fast") }}.
+Quoted, not typed: {{ score("history/jet-cylinder-fast", "SAC") }}, {{ cost("two-flaps-fast") }}.
 Not these figures: 83.1 % [80.6 %, 88.4 %] (another interval's bound), 0.2985,
 1 h 14 min 13 s, 0.1 % and 16 s (too common to tell apart).
 """
@@ -245,12 +339,12 @@ def test_a_figure_typed_by_hand_fails_naming_the_page_and_the_line(figures: list
     ), found
     assert found[0] == (
         "docs/example.md:5: '88.9 % [87.2 %, 92.7 %]' is 88.9 % [87.2 %, 92.7 %] of "
-        "docs/results/benchmark-jet-cylinder-fast.json: write "
-        '{{ score("jet-cylinder-fast", "SAC") }} instead'
+        "docs/results/history/benchmark-jet-cylinder-fast.json: write "
+        '{{ score("history/jet-cylinder-fast", "SAC") }} instead'
     )
     assert 'cost("perpendicular-flap-fast")' in found[2]
     assert 'seed_means("heated-plate-fast-integral", "SAC")' in found[3]
-    assert 'score("heated-plate-fast", "best PID")' in found[4]
+    assert 'score("history/heated-plate-fast", "best PID")' in found[4]
     assert 'time_to_floor("sac-overlap", 0.95).median' in found[5]
     # the check every page goes through fails on it, naming the page and the line
     with pytest.raises(AssertionError, match=r"docs/example\.md:5: '88\.9 %"):
@@ -263,12 +357,12 @@ def test_a_hand_typed_figure_in_the_readme_is_found_outside_its_table(figures: l
     start, _ = _readme_results_table()
     tampered = text.replace(start, "SAC takes 88.9 % of the floor.\n\n" + start, 1)
     (found,) = typed("README.md", tampered, figures)
-    assert "'88.9 %'" in found and 'score("jet-cylinder-fast", "SAC")' in found
+    assert "'88.9 %'" in found and 'score("history/jet-cylinder-fast", "SAC")' in found
 
 
 def test_the_figures_looked_for_follow_the_result_files(tmp_path: Path) -> None:
     shutil.copytree(macros.RESULTS, tmp_path / "results")
-    path = tmp_path / "results" / "benchmark-jet-cylinder-fast.json"
+    path = tmp_path / "results" / "history" / "benchmark-jet-cylinder-fast.json"
     data = json.loads(path.read_text())
     sac = next(c for c in data["controllers"] if c["label"] == "SAC")
     sac["metrics"]["settled_floor_fraction"]["median"] = {"value": 0.9, "low": 0.8, "high": 1.0}
