@@ -9,7 +9,26 @@ solver directory, like the preCICE tutorials' ``solid-fenics`` participants. Opt
      "adapter_config": "precice-adapter-config.json",  # fenicsprecice's configuration
      "python": null,          # interpreter; default: the FEniCS solver environment
      "threads": 1,            # OMP_NUM_THREADS for the script
-     "output_folder": "output"}  # what the script writes, removed at every reset
+     "output_folder": "output",  # what the script writes, removed at every reset
+     "starts": null,          # saved states to start episodes from (below)
+     "start_file": "start-state.npz"}  # where reset puts the episode's start state
+
+``starts`` (``{"train": [FILE, ...], "eval": [...], "validation": [...]}``, validation
+optional; files relative to the solver directory or absolute) is for a solid that
+restarts from a saved state matching the fluid's: an episode that starts from a fluid
+snapshot of a swinging run (the OpenFOAM plugin's ``snapshots``) needs the solid's
+displacement and velocity of that moment. At every reset the start the env's reset
+options choose (``env.reset(options={"split": "eval", "start": k})``) is copied to
+``<run dir>/<start_file>``, replacing the last episode's, for the script to read (the
+FSI3 bar's ``solid.py`` restarts from ``solid.json``'s ``start_state``). The choice is
+the OpenFOAM plugin's (:func:`gymprecice.plugin.choose_start`, with the seed core gives
+every solver): ``start`` k takes the split's k-th file *in the order given*, and the
+OpenFOAM plugin takes its k-th snapshot in time order, so give the files in time order,
+the state of each snapshot at the same place; without ``start`` both draw the same index.
+(Split ``"all"`` is train's files, then eval's, then validation's: the same draws as the
+OpenFOAM plugin's explicit ``snapshots`` split, but its ``start`` k counts in that order,
+where the OpenFOAM plugin counts all snapshots in time order.) Without ``starts`` reset
+writes no start file.
 
 The script runs in the FEniCS solver environment's interpreter (see
 :mod:`gymprecice_fenics.solver_env`), never in gymprecice's own: Debian's dolfin needs the
@@ -17,7 +36,8 @@ system Python and numpy 1.x.
 
 What the hooks do:
 
-* validate (pristine case, writes nothing): options, the script and adapter file exist,
+* validate (pristine case, writes nothing): options, the script, adapter file and start
+  files exist,
   and the adapter file's participant, mesh and data names agree with the preCICE XML,
   including that what the script reads is what its partner sends (a controller writing
   ``Heat-Flux`` where the script reads ``Temperature`` is named with both files).
@@ -28,7 +48,8 @@ What the hooks do:
   mesh is reported with its own error line before any coupling starts, and the coupling
   vertices it would give preCICE are kept for the interface geometry.
 * reset: removes the output folder, ``precice-*.log``, ``precice-profiling/``,
-  ``precice-exports/`` and ``gymprecice-fields/`` of the run directory.
+  ``precice-exports/`` and ``gymprecice-fields/`` of the run directory; with ``starts``,
+  copies the episode's start state to ``start_file``.
 * launch: ``<fenics python> <script>`` in the run directory, unbuffered; when the env
   renders, with ``GYMPRECICE_FIELDS`` and ``GYMPRECICE_FIELD_INTERVAL`` set.
 * fields (``env.render()``): the ``gymprecice-fields/<name>.npz`` files the script writes
@@ -63,6 +84,7 @@ from gymprecice.plugin import (
     InterfaceGeometry,
     LaunchSpec,
     SolverContext,
+    choose_start,
     command_output,
     first_match,
     for_kind,
@@ -77,7 +99,22 @@ KIND = "fenics"
 DEFAULT_SCRIPT = "solid.py"
 DEFAULT_ADAPTER_CONFIG = "precice-adapter-config.json"
 DEFAULT_OUTPUT = "output"
-OPTIONS = ("script", "adapter_config", "python", "threads", "output_folder")
+DEFAULT_START_FILE = "start-state.npz"
+OPTIONS = (
+    "script",
+    "adapter_config",
+    "python",
+    "threads",
+    "output_folder",
+    "starts",
+    "start_file",
+)
+#: The splits of ``starts``; train and eval are needed, validation is optional.
+START_SPLITS = ("train", "eval", "validation")
+VALIDATION_HINT = (
+    "give the FEniCS solver option starts a 'validation' list "
+    "({'train': [...], 'eval': [...], 'validation': [...]})"
+)
 DRY_RUN = Path(__file__).with_name("dry_run.py")
 DRY_RUN_TIMEOUT = 300.0  # the first run of a script compiles its forms
 
@@ -125,6 +162,7 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
         _check_options(solver)
         _script(solver)
         adapter = _adapter_config(solver)
+        _starts(solver)
     except (CaseError, ConfigError) as exc:
         return [str(exc)]
     if solver.precice is None:
@@ -137,6 +175,7 @@ def gymprecice_validate_case(solver: SolverContext) -> list[str] | None:
 def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
     _check_options(solver)
     script = _script(solver)
+    _starts(solver)
     python = _checked_python(solver)
     adapter = _adapter_config(solver)
     if solver.precice_config_file is not None:
@@ -148,6 +187,9 @@ def gymprecice_prepare_case(solver: SolverContext) -> bool | None:
         if problems:
             raise CaseError("\n".join(problems))
     solver.state["participant"] = adapter.participant
+    # A script that restarts reads its start file before it couples: the dry run gets
+    # the first training start, and every reset puts the episode's own in its place.
+    _place_start(solver, solver.run_dir.resolve(), first=True)
     solver.state["meshes"] = dry_run(solver, python, script)["meshes"]
     return True
 
@@ -165,6 +207,7 @@ def gymprecice_reset_case(solver: SolverContext) -> bool | None:
     for log in run_dir.glob("precice-*.log"):
         log.unlink(missing_ok=True)
     render_fields.clear_fields(run_dir)
+    _place_start(solver, run_dir)
     return True
 
 
@@ -316,6 +359,105 @@ def _check_options(solver: SolverContext) -> None:
             f"{_where(solver)}: {solver.describe()}: options.threads must be a positive "
             f"integer, got {threads!r}"
         )
+
+
+def _starts(solver: SolverContext) -> dict[str, list[str]] | None:
+    """The ``starts`` option checked: each split's files as given (``None``: no option).
+
+    Raises :class:`ConfigError` naming the option, the file and the fix for a malformed
+    option, a missing file or a ``start_file`` outside the run directory.
+    """
+    raw = solver.options.get("starts")
+    where = f"{_where(solver)}: {solver.describe()}: options"
+    _start_file(solver)
+    if raw is None:
+        return None
+    if not isinstance(raw, dict):
+        raise ConfigError(
+            f"{where}.starts must be {{'train': [FILE, ...], 'eval': [...]}} (and optionally "
+            f"'validation'), got {raw!r}"
+        )
+    unknown = sorted(set(raw) - set(START_SPLITS))
+    missing = [key for key in ("train", "eval") if not raw.get(key)]
+    if unknown or missing:
+        raise ConfigError(
+            f"{where}.starts: keys must be 'train' and 'eval', each a non-empty list of files, "
+            f"and optionally 'validation'; "
+            + (f"unknown {unknown}" if unknown else f"missing or empty {missing}")
+        )
+    pools: dict[str, list[str]] = {}
+    for key in START_SPLITS:
+        files = raw.get(key)
+        if files is None:
+            continue
+        if isinstance(files, str) or not isinstance(files, list):
+            raise ConfigError(f"{where}.starts[{key!r}] must be a list of files, got {files!r}")
+        for index, name in enumerate(files):
+            if not isinstance(name, str) or not name:
+                raise ConfigError(
+                    f"{where}.starts[{key!r}][{index}] must be a file name, got {name!r}"
+                )
+            path = _start_path(solver, name)
+            if not path.is_file():
+                raise ConfigError(
+                    f"{where}.starts[{key!r}][{index}]: the start file {path} does not exist; "
+                    f"put it in the solver directory {solver.source_dir} (names are relative "
+                    "to it) or give its absolute path"
+                )
+        pools[key] = list(files)
+    return pools
+
+
+def _start_path(solver: SolverContext, name: str) -> Path:
+    path = Path(name)
+    return path if path.is_absolute() else Path(solver.source_dir) / path
+
+
+def _start_file(solver: SolverContext) -> str:
+    """The ``start_file`` option: a relative path inside the run directory."""
+    name = solver.options.get("start_file", DEFAULT_START_FILE)
+    if (
+        not isinstance(name, str)
+        or not name
+        or Path(name).is_absolute()
+        or ".." in Path(name).parts
+    ):
+        raise ConfigError(
+            f"{_where(solver)}: {solver.describe()}: options.start_file must be a file name "
+            f"relative to the run directory (default {DEFAULT_START_FILE!r}), got {name!r}"
+        )
+    return name
+
+
+def _place_start(solver: SolverContext, run_dir: Path, first: bool = False) -> None:
+    """Copy the episode's start state to ``start_file`` (nothing without ``starts``).
+
+    The start is chosen as the OpenFOAM plugin chooses its snapshot, from the reset
+    options and ``solver.rng``; ``first``: the first training start (the dry run's).
+    """
+    pools = _starts(solver)
+    if pools is None:
+        return
+    if first:
+        chosen = pools["train"][0]
+    else:
+        everything = list(dict.fromkeys(name for files in pools.values() for name in files))
+        chosen = choose_start(
+            pools,
+            everything,
+            solver.rng,
+            solver.reset_options.get("split"),
+            solver.reset_options.get("start"),
+            what="start",
+            validation_hint=VALIDATION_HINT,
+        )
+    target = run_dir / _start_file(solver)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    partial = target.with_name(target.name + ".partial")
+    shutil.copyfile(_start_path(solver, chosen), partial)
+    # A rename replaces the last episode's file (or a link left there) without writing
+    # through it.
+    os.replace(partial, target)
 
 
 def _script(solver: SolverContext) -> Path:

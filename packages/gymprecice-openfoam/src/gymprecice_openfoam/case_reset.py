@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gymprecice.plugin import CaseError, ConfigError, SolverContext
+from gymprecice.plugin import CaseError, SolverContext
+from gymprecice.plugin import choose_start as shared_choose_start
 from gymprecice_openfoam import control
 from gymprecice_openfoam.case_state import (
     STORE,
@@ -29,6 +30,12 @@ from gymprecice_openfoam.case_state import (
     time_roots,
 )
 
+#: How to get a validation split, for a reset asking for one the case does not keep.
+VALIDATION_HINT = (
+    "set the solver option validation_fraction (e.g. 0.25) or give snapshots "
+    "as {'train': [...], 'eval': [...], 'validation': [...]}"
+)
+
 
 def choose_start(
     state: PreparedCase,
@@ -40,37 +47,22 @@ def choose_start(
 
     ``start`` (reset option ``"start"``) takes the split's snapshot of that index in time
     order, so that an evaluation can run every held-out start once; without it the
-    snapshot is drawn with ``rng``.
+    snapshot is drawn with ``rng``. The choice is core's :func:`gymprecice.plugin.
+    choose_start`, shared with the other plugins so that a solid restarting from saved
+    states (the FEniCS plugin's ``starts``) picks the state saved with this snapshot.
     """
     if not state.snapshots:
         return state.initial_time
-    if split in (None, "train", "eval"):
-        pool = state.split.get(split or "train") or state.snapshots
-    elif split == "validation":
-        pool = state.split.get("validation") or []
-        if not pool:
-            raise ConfigError(
-                "reset option split='validation': the case keeps no validation snapshots; "
-                "set the solver option validation_fraction (e.g. 0.25) or give snapshots "
-                "as {'train': [...], 'eval': [...], 'validation': [...]}"
-            )
-    elif split == "all":
-        pool = state.snapshots
-    else:
-        raise ConfigError(
-            f"reset option split={split!r}: use 'train' (default), 'eval', 'validation' or 'all'"
-        )
-    if start is not None:
-        if isinstance(start, bool) or not isinstance(start, (int, np.integer)):
-            raise ConfigError(f"reset option start={start!r}: must be an integer index")
-        if not 0 <= int(start) < len(pool):
-            raise ConfigError(
-                f"reset option start={start}: split {split or 'train'!r} has {len(pool)} "
-                f"snapshot(s) ({', '.join(pool)}); use 0 to {len(pool) - 1}"
-            )
-        return sorted(pool, key=float)[int(start)]
-    generator = rng if rng is not None else np.random.default_rng()
-    return pool[int(generator.integers(len(pool)))]
+    return shared_choose_start(
+        state.split,
+        state.snapshots,
+        rng,
+        split,
+        start,
+        what="snapshot",
+        validation_hint=VALIDATION_HINT,
+        order=float,
+    )
 
 
 def _restore_time_dir(run_dir: Path, root: Path, name: str, state: PreparedCase) -> None:

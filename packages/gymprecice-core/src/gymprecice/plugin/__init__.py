@@ -49,6 +49,9 @@ this one surface):
   (:class:`WatchPointLog`, :func:`open_watch_point`, ...; :mod:`gymprecice.plugin.watchpoints`);
 * **divergence**: :func:`first_match` and :func:`checked_positive`
   (:mod:`gymprecice.plugin.divergence`);
+* **episode starts** from saved states: :func:`choose_start`, a reset's pick of the
+  train, eval or validation split's start, the same in every plugin
+  (:mod:`gymprecice.plugin.starts`);
 * **the case's preCICE configuration** as core read it: :class:`PreciceConfig`,
   :class:`ParticipantSpec` (:mod:`gymprecice.plugin.precice_xml`);
 * **sketches** for ``gymprecice sketch``: :class:`SolverSketch`, :class:`SketchPatch`,
@@ -98,6 +101,7 @@ from gymprecice.plugin.solver import (
     SolverContext,
     WaitableOutputReader,
 )
+from gymprecice.plugin.starts import choose_start
 from gymprecice.plugin.watchpoints import (
     WatchPointLog,
     open_watch_point,
@@ -155,6 +159,7 @@ __all__ = [
     "WaitableOutputReader",
     "WatchPointLog",
     "checked_positive",
+    "choose_start",
     "command_output",
     "field_file",
     "first_match",
