@@ -64,13 +64,21 @@ def test_the_coupled_fsi3_run_goes_through_the_environment(tmp_path) -> None:
 @pytest.mark.openfoam
 @pytest.mark.fenics
 @pytest.mark.slow
-@pytest.mark.timeout(400)
-def test_the_coupled_fsi3_run_goes_through_with_the_fenics_bar(tmp_path) -> None:
-    """The bar that restarts (tests/test_fsi3_solid_real.py) as the coupled solid, for
-    20 windows: what differs from the deal.II bar's run is the solid, whose coupling the
-    first windows already exercise. Cost: about 40 s (the bar's forms compiled once, then
-    20 implicitly coupled windows)."""
+@pytest.mark.timeout(500)
+def test_an_episode_from_a_saved_start_repeats_the_uncontrolled_run_it_was_saved_from(
+    tmp_path,
+) -> None:
+    """The FEniCS bar (tests/test_fsi3_solid_real.py) as the coupled solid: a smoke-size
+    library of starts is built by the uncontrolled run through the env (20 windows), then
+    an episode from its validation start, jets shut, must repeat that run: the fluid
+    restarts from its time directory on the deformed mesh, the bar from its saved state,
+    and each hands the other its state at the first window. Cost: about 1.5 min."""
+    import numpy as np
+
     from gymprecice_fenics import solver_env
+    from gymprecice_tutorials.turek_hron import starts
+    from gymprecice_tutorials.turek_hron.environment import TurekHronEnv
+    from gymprecice_tutorials.turek_hron.series import recorded_series, run_to_end
 
     missing = missing_coupled_stack("pimpleFoam", "blockMesh")
     report = solver_env.probe()
@@ -78,8 +86,51 @@ def test_the_coupled_fsi3_run_goes_through_with_the_fenics_bar(tmp_path) -> None
         missing += list(report.problems)
     if missing:
         pytest.skip("needs " + ", ".join(missing))
-    assert "FEniCS solid" in _smoke_run(tmp_path, "--solid", "fenics", "--end-time", "0.02")
-    assert list((tmp_path / "runs").glob("env_0/solid-fenics/precice-Solid-watchpoint-*.log"))
+    built = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gymprecice_tutorials.turek_hron.build_starts",
+            "--smoke",
+            "--out",
+            str(tmp_path / "starts"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=360,
+    )
+    assert built.returncode == 0, built.stdout[-3000:] + built.stderr[-3000:]
+    library = starts.load(tmp_path / "starts")
+    assert library.times == ("0.02", "0.03", "0.04")
+    assert not (tmp_path / ".starts-run").exists()  # the build's run is removed
+    uncontrolled = dict(np.load(library.path / starts.UNCONTROLLED))
+
+    env = TurekHronEnv(
+        starts=library.path,
+        time_step=0.002,
+        episode_time=0.01,
+        action_time=0.002,
+        run_root=tmp_path / "runs",
+    )
+    try:
+        obs, info = env.reset(seed=0, options={"split": "validation", "start": 0})
+        assert info["start"] == {"split": "validation", "index": 0, "time": "0.03"}
+        run_to_end(env)
+        episode = recorded_series(env, start_time=0.03)
+    finally:
+        env.close()
+
+    def uncontrolled_at(name: str, times: np.ndarray) -> np.ndarray:
+        return np.interp(times + 0.03, uncontrolled["time"], uncontrolled[name])
+
+    # the first observation is the bar's saved state, not the bar at rest
+    assert obs[0] == pytest.approx(uncontrolled_at("tip_dx", np.zeros(1))[0], rel=1e-3)
+    assert abs(obs[0]) > 1e-7
+    # five windows on, the restarted run is the uncontrolled one (ASCII time
+    # directories of 10 digits: close, not to the bit)
+    for name in ("tip_dx", "drag"):
+        expected = uncontrolled_at(name, episode["time"][-1:])[0]
+        assert episode[name][-1] == pytest.approx(expected, rel=1e-2), name
 
 
 def _smoke_run(tmp_path, *options: str) -> str:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 from gymprecice_tutorials.case_files import apply_edits
 from gymprecice_tutorials.turek_hron import CASE_DIR
@@ -79,6 +80,8 @@ def case_files(
     degree: int = 2,
     action_time: float = 0.02,
     solid: str = "dealii",
+    solid_settings: dict[str, Any] | None = None,
+    fluid_writes: tuple[float, int] | None = None,
 ) -> dict[str, str]:
     """The case's files (relative path -> text) for one run.
 
@@ -86,11 +89,17 @@ def case_files(
     coupling's time window, the fluid's and the solid's step; ``end_time`` the simulated
     seconds; ``degree`` the solid's polynomial degree; an action lasts ``action_time``
     (a whole number of time windows); ``solid`` names one of :data:`SOLIDS`.
+    ``solid_settings`` go into the FEniCS bar's ``solid.json`` (``start_state``,
+    ``save_dir``, ``save_times``); ``fluid_writes`` ``(interval, keep)`` has the fluid
+    write its state every ``interval`` simulated seconds and keep the last ``keep``
+    (OpenFOAM's ``writeInterval`` and ``purgeWrite``): what a library of starts needs.
     """
     if resolution not in RESOLUTIONS:
         raise ValueError(f"resolution must be one of {sorted(RESOLUTIONS)}, got {resolution!r}")
     if solid not in SOLIDS:
         raise ValueError(f"solid must be one of {sorted(SOLIDS)}, got {solid!r}")
+    if solid_settings and solid != "fenics":
+        raise ValueError("solid_settings are the FEniCS bar's (solid='fenics')")
     if not (time_step > 0 and end_time > 0 and degree >= 1):
         raise ValueError("time_step and end_time must be positive and degree at least 1")
     windows = round(action_time / time_step)
@@ -112,6 +121,15 @@ def case_files(
         (_XML, '<max-time value="8.0" />', f'<max-time value="{end}" />'),
         (_CONTROL, "deltaT          0.001;", f"deltaT          {step};"),
     ]
+    if fluid_writes is not None:
+        interval, keep = fluid_writes
+        edits += [
+            (
+                _CONTROL,
+                "writeInterval   1;\npurgeWrite      0;",
+                f"writeInterval   {interval:.10g};\npurgeWrite      {int(keep)};",
+            ),
+        ]
     if solid == "dealii":
         edits += [
             (_PRM, "set Time step size  = 0.001", f"set Time step size  = {step}"),
@@ -134,6 +152,7 @@ def case_files(
         solver["kind"], solver["path"], solver["options"] = solid, SOLIDS[solid], {}
         settings = json.loads(files[f"{SOLIDS[solid]}/solid.json"])
         settings["degree"] = degree
+        settings.update(solid_settings or {})
         files[f"{SOLIDS[solid]}/solid.json"] = json.dumps(settings) + "\n"
     files["gymprecice-config.json"] = json.dumps(config, indent=4) + "\n"
     return files

@@ -11,11 +11,14 @@ damp the swing.
 * **Observation** ``(2,)``: the bar tip's displacement ``(dx, dy)`` (m) at the step's
   end, from the solid's preCICE watch point ``Flap-Tip`` (point A of the benchmark).
 * **Reward**: ``-mean |dy|`` over the time windows of the step (m).
-* **Episode end**: truncated at the coupling's max-time (``end_time``); no terminal
-  state. Every episode starts from the fluid at rest, under the benchmark's ramped
-  inflow: the deal.II solid cannot start from a saved state. ``solid="fenics"`` runs the
-  FEniCS bar of ``case/solid-fenics/`` instead, which can (its coupled validation and
-  the starts from the swinging state are still to come).
+* **Episode end**: truncated at the coupling's max-time; no terminal state.
+* **Start**: without ``starts``, every episode starts from the fluid at rest under the
+  benchmark's ramped inflow and lasts ``end_time`` seconds. With ``starts`` (a library of
+  the swinging state's saved states, :mod:`.starts`), an episode starts from one of them
+  and lasts ``episode_time`` seconds: ``reset(options={"split": "eval", "start": k})``
+  takes the k-th held-out start, ``"validation"`` those that choose a model, and training
+  draws from the rest with the env's seed. Starts need the FEniCS bar (``solid``
+  defaults to it then): the deal.II program cannot restart from a saved state.
 
 ``info["metrics"]`` holds the tip's displacement and the drag and lift on the cylinder,
 its jets and the bar (N per metre of depth, the benchmark's forces), the means over
@@ -24,6 +27,7 @@ the step. Uncontrolled, the run is the benchmark's: :mod:`.validate` compares it
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
@@ -37,10 +41,14 @@ from gymprecice.plugin.fields import Overlay
 from gymprecice_openfoam import actuators
 from gymprecice_openfoam.outputs import last_per_time
 from gymprecice_tutorials.case_files import write_case_files
+from gymprecice_tutorials.turek_hron import starts as start_library
 from gymprecice_tutorials.turek_hron.case import INFLOW_MEAN, case_files
 from gymprecice_tutorials.turek_hron.mesh import GEOMETRY
 
-__all__ = ["MAX_FLOW_RATE", "TurekHronEnv"]
+__all__ = ["MAX_FLOW_RATE", "START_FILE", "TurekHronEnv"]
+
+#: the file the FEniCS solver copies the episode's saved bar state to (its ``start_file``)
+START_FILE = "start-state.npz"
 
 #: 6 % of the mean inflow's rate through the channel, over the mesh's depth (m³/s)
 MAX_FLOW_RATE = 0.06 * INFLOW_MEAN * GEOMETRY.height * GEOMETRY.depth
@@ -65,17 +73,38 @@ class TurekHronEnv(Adapter):
         end_time: float = 8.0,
         degree: int = 2,
         action_time: float = 0.02,
-        solid: str = "dealii",
+        solid: str | None = None,
+        starts: str | Path | None = None,
+        episode_time: float = 1.0,
         max_flow_rate: float = MAX_FLOW_RATE,
         watch_timeout: float = 300.0,
         run_root: str | Path | None = None,
+        solid_settings: dict[str, Any] | None = None,
+        fluid_writes: tuple[float, int] | None = None,
         **kwargs: Any,
     ) -> None:
         if not max_flow_rate > 0:  # before anything is written or started
             raise ValueError(f"max_flow_rate must be positive, got {max_flow_rate}")
+        solid = solid or ("fenics" if starts is not None else "dealii")
+        self.starts = start_library.load(starts) if starts is not None else None
         if options is None:
-            files = case_files(resolution, time_step, end_time, degree, action_time, solid)
-            name = f"turek-hron-fsi3-{resolution}" + ("" if solid == "dealii" else f"-{solid}")
+            if self.starts is not None:
+                files = self._files_from_starts(
+                    self.starts, resolution, time_step, episode_time, degree, action_time, solid
+                )
+                name = f"turek-hron-fsi3-{resolution}-starts"
+            else:
+                files = case_files(
+                    resolution,
+                    time_step,
+                    end_time,
+                    degree,
+                    action_time,
+                    solid,
+                    solid_settings,
+                    fluid_writes,
+                )
+                name = f"turek-hron-fsi3-{resolution}" + ("" if solid == "dealii" else f"-{solid}")
             options = write_case_files(name, files, run_root)
         super().__init__(options, idx, run_root=run_root, **kwargs)
         self.max_flow_rate = float(max_flow_rate)
@@ -86,6 +115,100 @@ class TurekHronEnv(Adapter):
         self._tip: Any = None
         self._forces: Any = None
         self._step_rows = np.zeros((0, 0))
+
+    @staticmethod
+    def _files_from_starts(
+        library: start_library.StartLibrary,
+        resolution: str,
+        time_step: float,
+        episode_time: float,
+        degree: int,
+        action_time: float,
+        solid: str,
+    ) -> dict[str, str]:
+        """The case of episodes from the library's starts: the packaged case run for
+        ``episode_time`` from each start, the fluid's time directories in it as snapshots
+        and the bar's states as the FEniCS solver's starts, in the same split."""
+        if solid != "fenics":
+            raise ValueError(
+                f"starts need solid='fenics' (the FEniCS bar restarts from a saved state; "
+                f"the deal.II program cannot), got solid={solid!r}"
+            )
+        library.check(resolution, time_step, degree)
+        settings = {"start_state": START_FILE}
+        files = case_files(
+            resolution, time_step, episode_time, degree, action_time, solid, settings
+        )
+        files.update(library.fluid_files())
+        # Both sides of the bar start from the saved state: the fluid's first iteration
+        # reads the bar's displacement (its mesh already deformed) and the bar the fluid's
+        # stress, rather than zeros that pull the mesh back to the bar at rest.
+        xml = files["precice-config.xml"]
+        for exchange in (
+            '<exchange data="Stress" mesh="Fluid-Mesh-Centres" from="Fluid" to="Solid"',
+            '<exchange data="Displacement" mesh="Solid-Mesh" from="Solid" to="Fluid"',
+        ):
+            if xml.count(exchange + " />") != 1:
+                raise ValueError(
+                    f"the packaged precice-config.xml has no single {exchange!r}; update "
+                    "TurekHronEnv._files_from_starts to the packaged case"
+                )
+            xml = xml.replace(exchange + " />", exchange + ' initialize="true" />')
+        files["precice-config.xml"] = xml
+        config = json.loads(files["gymprecice-config.json"])
+        solvers = config["physics_simulation_engine"]["solvers"]
+        solvers[TurekHronEnv.FLUID]["options"]["snapshots"] = {
+            split: [float(name) for name in names] for split, names in library.split.items()
+        }
+        solvers[TurekHronEnv.SOLID]["options"].update(
+            starts={
+                split: [str(library.solid_state(name)) for name in names]
+                for split, names in library.split.items()
+            },
+            start_file=START_FILE,
+        )
+        files["gymprecice-config.json"] = json.dumps(config, indent=4) + "\n"
+        return files
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Core's reset; with starts, the episode's start is chosen here, from the env's
+        seed, and both solvers are given it, so the fluid and the bar start together."""
+        if self.starts is None:
+            return super().reset(seed=seed, options=options)
+        gym.Env.reset(self, seed=seed)  # seeds np_random before the draw
+        options = dict(options or {})
+        split = options.get("split") or "train"
+        pool = self.starts.times if split == "all" else self.starts.split.get(split)
+        if not pool:
+            raise ValueError(
+                f"reset option split={split!r}: the starts in {self.starts.path} have "
+                f"splits {sorted(self.starts.split)} (or 'all')"
+            )
+        if options.get("start") is None:
+            options["start"] = int(self.np_random.integers(len(pool)))
+        options["split"] = split
+        obs, info = super().reset(seed=None, options=options)
+        start = int(options["start"])
+        name = pool[start] if 0 <= start < len(pool) else None
+        return obs, {**info, "start": {"split": split, "index": start, "time": name}}
+
+    @property
+    def held_out_starts(self) -> tuple[str, ...]:
+        """The held-out starts, in the order ``reset(options={"split": "eval", "start":
+        k})`` takes them (none without a library of starts)."""
+        return self._labels("eval")
+
+    @property
+    def validation_starts(self) -> tuple[str, ...]:
+        """The starts that choose a model, as ``"split": "validation"`` takes them."""
+        return self._labels("validation")
+
+    def _labels(self, split: str) -> tuple[str, ...]:
+        if self.starts is None:
+            return ()
+        return tuple(f"t = {name} s" for name in self.starts.split.get(split, []))
 
     @property
     def render_fields(self) -> dict[str, tuple[str, ...]]:  # type: ignore[override]

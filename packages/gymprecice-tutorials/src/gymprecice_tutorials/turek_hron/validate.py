@@ -30,10 +30,10 @@ from typing import Any
 
 import numpy as np
 
-from gymprecice_openfoam.outputs import last_per_time
 from gymprecice_tutorials.turek_hron.case import SOLIDS
 from gymprecice_tutorials.turek_hron.mesh import RESOLUTIONS, cell_count
 from gymprecice_tutorials.turek_hron.reference import PUBLISHED, oscillation
+from gymprecice_tutorials.turek_hron.series import SIGNALS, Series, recorded_series, run_to_end
 
 __all__ = ["Series", "compare", "main", "run_uncontrolled"]
 
@@ -41,11 +41,6 @@ __all__ = ["Series", "compare", "main", "run_uncontrolled"]
 FULL_END = 8.0
 WINDOW = 1.0
 SMOKE_END = 0.1
-SIGNALS = ("tip_dx", "tip_dy", "drag", "lift")
-
-
-#: a run's time series by name: ``time``, then each of :data:`SIGNALS`
-Series = dict[str, np.ndarray]
 
 
 def run_uncontrolled(
@@ -58,7 +53,6 @@ def run_uncontrolled(
 ) -> tuple[Series, float]:
     """The uncontrolled run's series at every time window, and its wall-clock (s)."""
     from gymprecice_tutorials.turek_hron.environment import TurekHronEnv
-    from gymprecice_tutorials.turek_hron.mesh import GEOMETRY
 
     started = clock.monotonic()
     env = TurekHronEnv(
@@ -71,24 +65,10 @@ def run_uncontrolled(
     )
     try:
         env.reset(seed=0)
-        shut = np.zeros(1, dtype=np.float32)
-        while True:
-            *_, terminated, truncated, _ = env.step(shut)
-            if terminated or truncated:
-                break
-        tip = env.open_output(env.SOLID, "watchpoint", point=env.WATCH_POINT)
-        tip.read_new()
-        forces = last_per_time(env.open_output(env.FLUID, "forces", type="forces").read_all())
+        run_to_end(env)
+        series = recorded_series(env)
     finally:
         env.close()
-    displacement = tip.field("Displacement")
-    series: Series = {"time": np.asarray(tip.field("Time"))}
-    series["tip_dx"], series["tip_dy"] = displacement[:, 0], displacement[:, 1]
-    # the fluid's converged row of each window, at the solid's times
-    force_time = np.asarray(forces.time)
-    for name, column in (("drag", "total_x"), ("lift", "total_y")):
-        values = np.asarray(forces.column(column)) / GEOMETRY.depth
-        series[name] = np.interp(series["time"], force_time, values)
     return series, clock.monotonic() - started
 
 

@@ -31,12 +31,30 @@ precice = Adapter(adapter_config_filename="precice-adapter-config.json")
 traction = None
 
 
+def start_displacement(function_space):
+    """The start state's displacement, the coupling's initial data (a case whose
+    preCICE configuration initializes ``Displacement``: a restart, whose fluid mesh is
+    already deformed); without a start state the function space, and no initial data."""
+    if not SETTINGS.get("start_state"):
+        return function_space
+    import numpy as np
+    from dolfin import Function
+
+    displacement = Function(function_space)
+    with np.load(SETTINGS["start_state"]) as saved:
+        displacement.vector().set_local(saved["u"])  # Bar.load checks the state's size
+    displacement.vector().apply("insert")
+    return displacement
+
+
 def coupling_traction(function_space):
     """The fluid's stress on the wetted faces: fenicsprecice's coupling expression, made
     once preCICE knows the coupling vertices of the bar's function space."""
     global traction
     precice.initialize(
-        AutoSubDomain(wetted), read_function_space=function_space, write_object=function_space
+        AutoSubDomain(wetted),
+        read_function_space=function_space,
+        write_object=start_displacement(function_space),
     )
     traction = precice.create_coupling_expression()
     return traction
