@@ -86,20 +86,7 @@ def test_an_episode_from_a_saved_start_repeats_the_uncontrolled_run_it_was_saved
         missing += list(report.problems)
     if missing:
         pytest.skip("needs " + ", ".join(missing))
-    built = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "gymprecice_tutorials.turek_hron.build_starts",
-            "--smoke",
-            "--out",
-            str(tmp_path / "starts"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=360,
-    )
-    assert built.returncode == 0, built.stdout[-3000:] + built.stderr[-3000:]
+    _run_module("build_starts", "--smoke", "--out", str(tmp_path / "starts"))
     library = starts.load(tmp_path / "starts")
     assert library.times == ("0.02", "0.03", "0.04")
     assert not (tmp_path / ".starts-run").exists()  # the build's run is removed
@@ -136,20 +123,19 @@ def test_an_episode_from_a_saved_start_repeats_the_uncontrolled_run_it_was_saved
 def _smoke_run(tmp_path, *options: str) -> str:
     """``validate --smoke`` (0.1 s of FSI3 unless `options` say otherwise) into
     ``tmp_path/runs``; its output."""
+    output = _run_module("validate", "--smoke", *options, "--out", str(tmp_path / "runs"))
+    assert "smoke run: every output in place" in output
+    return output
+
+
+def _run_module(module: str, *args: str) -> str:
+    """``python -m gymprecice_tutorials.turek_hron.<module> ARGS``, which must succeed;
+    its output."""
     result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "gymprecice_tutorials.turek_hron.validate",
-            "--smoke",
-            *options,
-            "--out",
-            str(tmp_path / "runs"),
-        ],
+        [sys.executable, "-m", f"gymprecice_tutorials.turek_hron.{module}", *args],
         capture_output=True,
         text=True,
         timeout=360,
     )
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    assert "smoke run: every output in place" in result.stdout
     return result.stdout
