@@ -9,7 +9,11 @@ the solid (the deal.II-preCICE adapter's ``elasticity`` in its FSI3 scenario,
 ``case/`` holds the files that do not change; :mod:`.case` adds the mesh
 (:mod:`.mesh`), the ramped inflow and the time step of a run. The environment is
 :class:`~.environment.TurekHronEnv`; :mod:`.validate` compares the uncontrolled run
-with the benchmark's published values (:mod:`.reference`).
+with the benchmark's published values (:mod:`.reference`), from the series
+:mod:`.series` reads. Episodes can start from the swinging state instead of rest: a
+library of saved fluid and bar states (:mod:`.starts`), built by one uncontrolled run
+(:mod:`.build_starts`), with the FEniCS bar that restarts (``case/solid-fenics/``,
+checked alone by :mod:`.solid_checks`).
 """
 
 from pathlib import Path
