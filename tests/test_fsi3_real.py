@@ -69,10 +69,11 @@ def test_an_episode_from_a_saved_start_repeats_the_uncontrolled_run_it_was_saved
     tmp_path,
 ) -> None:
     """The FEniCS bar (tests/test_fsi3_solid_real.py) as the coupled solid: a smoke-size
-    library of starts is built by the uncontrolled run through the env (20 windows), then
-    an episode from its validation start, jets shut, must repeat that run: the fluid
-    restarts from its time directory on the deformed mesh, the bar from its saved state,
-    and each hands the other its state at the first window. Cost: about 1.5 min."""
+    library of starts is built by the uncontrolled run through the env (20 windows, in
+    two segments: the second starts from the first's checkpoint), then an episode from
+    its validation start, jets shut, must repeat that run: the fluid restarts from its
+    time directory on the deformed mesh, the bar from its saved state, and each hands
+    the other its state at the first window. Cost: about 1.5 min."""
     import numpy as np
 
     from gymprecice_fenics import solver_env
@@ -86,7 +87,8 @@ def test_an_episode_from_a_saved_start_repeats_the_uncontrolled_run_it_was_saved
         missing += list(report.problems)
     if missing:
         pytest.skip("needs " + ", ".join(missing))
-    _run_module("build_starts", "--smoke", "--out", str(tmp_path / "starts"))
+    built = _run_module("build_starts", "--smoke", "--out", str(tmp_path / "starts"))
+    assert "t = 0.01 s of 0.04 s" in built  # a checkpoint, which the last segment started from
     library = starts.load(tmp_path / "starts")
     assert library.times == ("0.02", "0.03", "0.04")
     assert not (tmp_path / ".starts-run").exists()  # the build's run is removed

@@ -121,3 +121,14 @@ def test_the_build_runs_save_the_states_a_library_needs() -> None:
     assert "writeInterval   0.02;" in control and "purgeWrite      9;" in control
     with pytest.raises(ValueError, match="FEniCS bar"):
         case_files("coarse", solid="dealii", solid_settings={"save_dir": "states"})
+
+
+def test_the_build_checkpoints_on_the_starts_grid_before_the_first_start() -> None:
+    from gymprecice_tutorials.turek_hron.build_starts import checkpoint_times
+
+    assert checkpoint_times(6.0, 1.0, 0.02) == [1.0, 2.0, 3.0, 4.0, 5.0]
+    assert checkpoint_times(6.5, 1.0, 0.02) == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    assert checkpoint_times(0.02, 0.01, 0.01) == [0.01]  # --smoke
+    assert checkpoint_times(6.0, 0.0, 0.02) == []  # none asked for
+    with pytest.raises(ValueError, match="whole number of --spacing"):
+        checkpoint_times(6.0, 0.25, 0.02)

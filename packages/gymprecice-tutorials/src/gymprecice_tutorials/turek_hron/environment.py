@@ -90,7 +90,15 @@ class TurekHronEnv(Adapter):
         if options is None:
             if self.starts is not None:
                 files = self._files_from_starts(
-                    self.starts, resolution, time_step, episode_time, degree, action_time, solid
+                    self.starts,
+                    resolution,
+                    time_step,
+                    episode_time,
+                    degree,
+                    action_time,
+                    solid,
+                    solid_settings,
+                    fluid_writes,
                 )
                 name = f"turek-hron-fsi3-{resolution}-starts"
             else:
@@ -125,19 +133,22 @@ class TurekHronEnv(Adapter):
         degree: int,
         action_time: float,
         solid: str,
+        solid_settings: dict[str, Any] | None = None,
+        fluid_writes: tuple[float, int] | None = None,
     ) -> dict[str, str]:
         """The case of episodes from the library's starts: the packaged case run for
         ``episode_time`` from each start, the fluid's time directories in it as snapshots
-        and the bar's states as the FEniCS solver's starts, in the same split."""
+        and the bar's states as the FEniCS solver's starts, in the same split
+        (``solid_settings`` and ``fluid_writes`` as :func:`~.case.case_files` takes them)."""
         if solid != "fenics":
             raise ValueError(
                 f"starts need solid='fenics' (the FEniCS bar restarts from a saved state; "
                 f"the deal.II program cannot), got solid={solid!r}"
             )
         library.check(resolution, time_step, degree)
-        settings = {"start_state": START_FILE}
+        settings = {**(solid_settings or {}), "start_state": START_FILE}
         files = case_files(
-            resolution, time_step, episode_time, degree, action_time, solid, settings
+            resolution, time_step, episode_time, degree, action_time, solid, settings, fluid_writes
         )
         files.update(library.fluid_files())
         # Both sides of the bar start from the saved state: the fluid's first iteration
