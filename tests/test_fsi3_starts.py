@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gymprecice_tutorials.turek_hron import starts
@@ -132,3 +133,33 @@ def test_the_build_checkpoints_on_the_starts_grid_before_the_first_start() -> No
     assert checkpoint_times(6.0, 0.0, 0.02) == []  # none asked for
     with pytest.raises(ValueError, match="whole number of --spacing"):
         checkpoint_times(6.0, 0.25, 0.02)
+
+
+def test_each_solver_is_told_the_start_by_the_split_that_holds_it(tmp_path, monkeypatch) -> None:
+    """The env chooses the start and hands both solvers its own split and index, so that
+    'all' (in time order for the fluid, in the splits' order for the bar) and a drawn
+    start mean one time for both."""
+    from gymprecice.env.core import Adapter
+
+    library = starts.load(_library(tmp_path / "lib"))
+    told: list[dict] = []
+
+    def reset(self, *, seed=None, options=None):
+        told.append(dict(options))
+        return np.zeros(2, np.float32), {}
+
+    monkeypatch.setattr(Adapter, "reset", reset)
+    env = TurekHronEnv(starts=library.path, run_root=tmp_path / "runs")
+    for k, name in enumerate(TIMES):
+        _, info = env.reset(options={"split": "all", "start": k})
+        own = told[-1]
+        assert library.split[own["split"]][own["start"]] == name
+        assert info["start"] == {"split": "all", "index": k, "time": name}
+    _, info = env.reset(seed=7)  # a training start, drawn from the seed
+    assert told[-1]["split"] == "train" and info["start"]["time"] in library.split["train"]
+    assert env.reset(seed=7)[1]["start"] == info["start"]  # the same seed, the same start
+    assert env.held_out_starts == tuple(f"t = {n} s" for n in library.split["eval"])
+    with pytest.raises(ValueError, match="use 0 to"):
+        env.reset(options={"split": "eval", "start": 99})
+    with pytest.raises(ValueError, match="splits"):
+        env.reset(options={"split": "test"})

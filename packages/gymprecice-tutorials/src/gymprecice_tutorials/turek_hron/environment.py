@@ -18,7 +18,9 @@ damp the swing.
   and lasts ``episode_time`` seconds: ``reset(options={"split": "eval", "start": k})``
   takes the k-th held-out start, ``"validation"`` those that choose a model, and training
   draws from the rest with the env's seed. Starts need the FEniCS bar (``solid``
-  defaults to it then): the deal.II program cannot restart from a saved state.
+  defaults to it then): the deal.II program cannot restart from a saved state. The
+  case (``resolution``, ``time_step``, ``degree``) is the library's unless given; one
+  that differs is refused. Without starts it is the coarse mesh, 1 ms and degree 2.
 
 ``info["metrics"]`` holds the tip's displacement and the drag and lift on the cylinder,
 its jets and the bar (N per metre of depth, the benchmark's forces), the means over
@@ -68,10 +70,10 @@ class TurekHronEnv(Adapter):
         options: Mapping[str, Any] | str | Path | None = None,
         idx: int = 0,
         *,
-        resolution: str = "coarse",
-        time_step: float = 1e-3,
+        resolution: str | None = None,
+        time_step: float | None = None,
         end_time: float = 8.0,
-        degree: int = 2,
+        degree: int | None = None,
         action_time: float = 0.02,
         solid: str | None = None,
         starts: str | Path | None = None,
@@ -87,6 +89,12 @@ class TurekHronEnv(Adapter):
             raise ValueError(f"max_flow_rate must be positive, got {max_flow_rate}")
         solid = solid or ("fenics" if starts is not None else "dealii")
         self.starts = start_library.load(starts) if starts is not None else None
+        # the case: the library's by default, else the validated coarse run's
+        if self.starts is not None:
+            resolution = resolution or self.starts.resolution
+            time_step = time_step or self.starts.time_step
+            degree = degree or self.starts.degree
+        resolution, time_step, degree = resolution or "coarse", time_step or 1e-3, degree or 2
         if options is None:
             if self.starts is not None:
                 files = self._files_from_starts(
@@ -197,13 +205,24 @@ class TurekHronEnv(Adapter):
                 f"reset option split={split!r}: the starts in {self.starts.path} have "
                 f"splits {sorted(self.starts.split)} (or 'all')"
             )
-        if options.get("start") is None:
-            options["start"] = int(self.np_random.integers(len(pool)))
-        options["split"] = split
-        obs, info = super().reset(seed=None, options=options)
-        start = int(options["start"])
-        name = pool[start] if 0 <= start < len(pool) else None
-        return obs, {**info, "start": {"split": split, "index": start, "time": name}}
+        start = options.get("start")
+        if start is None:
+            start = int(self.np_random.integers(len(pool)))
+        if isinstance(start, bool) or not isinstance(start, (int, np.integer)):
+            raise ValueError(f"reset option start={start!r}: must be an integer index")
+        if not 0 <= start < len(pool):
+            raise ValueError(
+                f"reset option start={start}: split {split!r} has {len(pool)} start(s) "
+                f"({', '.join(pool)}); use 0 to {len(pool) - 1}"
+            )
+        name = pool[int(start)]
+        # Each solver is told the start by its own split and index: "all" is not in the
+        # same order for both (the fluid sorts its snapshots by time, the bar's files
+        # keep the splits' order), so a start of "all" goes as the split that holds it.
+        own = next(s for s, names in self.starts.split.items() if name in names)
+        chosen = {"split": own, "start": self.starts.split[own].index(name)}
+        obs, info = super().reset(seed=None, options={**options, **chosen})
+        return obs, {**info, "start": {"split": split, "index": int(start), "time": name}}
 
     @property
     def held_out_starts(self) -> tuple[str, ...]:
