@@ -11,6 +11,7 @@ import math
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -259,3 +260,20 @@ def test_the_bars_checks_refuse_bad_input_naming_it(argv, message, tmp_path) -> 
     )
     assert proc.returncode == 2 and message in proc.stderr, proc.stderr
     assert not (tmp_path / "runs").exists()
+
+
+def test_the_fenics_bar_s_load_is_a_setting_of_the_validation_and_only_of_that_bar(tmp_path):
+    from gymprecice_tutorials.turek_hron.validate import main, study_table
+
+    files = case_files("coarse", solid="fenics", solid_settings={"load": "vertex"})
+    assert json.loads(files["solid-fenics/solid.json"])["load"] == "vertex"
+    assert json.loads(case_files("coarse", solid="fenics")["solid-fenics/solid.json"])["load"] == (
+        "rbf"  # the validated runs' load, unless asked
+    )
+    with pytest.raises(SystemExit):
+        main(["--load", "vertex", "--out", str(tmp_path)])  # the deal.II program has none
+    assert not any(tmp_path.iterdir())
+    results = Path(__file__).resolve().parents[1] / "docs" / "results"
+    record = json.loads((results / "validation-fsi3-fenics-coarse-dt2ms.json").read_text())
+    assert "FEniCS (vertex load)" in study_table([{**record, "load": "vertex"}])
+    assert "(rbf load)" not in study_table([record])  # the runs before the setting

@@ -7,7 +7,7 @@ seconds with :data:`~.reference.PUBLISHED`, each figure within its stated tolera
 
     python -m gymprecice_tutorials.turek_hron.validate [--resolution coarse|medium|fine]
         [--time-step S] [--end-time S] [--degree P] [--window S] [--smoke]
-        [--out DIR] [--json FILE] [--figure PNG]
+        [--solid dealii|fenics] [--load rbf|vertex] [--out DIR] [--json FILE] [--figure PNG]
     python -m gymprecice_tutorials.turek_hron.validate --summarize RESULT.json ...
 
 ``--summarize`` prints the mesh and time-step study: one row per result file that
@@ -50,6 +50,7 @@ def run_uncontrolled(
     degree: int,
     run_root: Path,
     solid: str = "dealii",
+    load: str | None = None,
 ) -> tuple[Series, float]:
     """The uncontrolled run's series at every time window, and its wall-clock (s)."""
     from gymprecice_tutorials.turek_hron.environment import TurekHronEnv
@@ -62,6 +63,7 @@ def run_uncontrolled(
         degree=degree,
         solid=solid,
         run_root=run_root,
+        solid_settings={"load": load} if load else None,
     )
     try:
         env.reset(seed=0)
@@ -178,6 +180,8 @@ def study_table(records: Sequence[dict[str, Any]]) -> str:
             for name, _, scale in STUDY
         ]
         solid = SOLID_NAMES[record.get("solid", "dealii")]  # records before the FEniCS bar
+        if record.get("load"):
+            solid += f" ({record['load']} load)"
         lines.append(
             f"| {record['resolution']} | {solid} | {record['cells']:,} | "
             f"{record['time_step']:g} | "
@@ -219,6 +223,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="dealii",
         help="the deal.II program, or the FEniCS bar that restarts (solid_checks)",
     )
+    parser.add_argument(
+        "--load",
+        choices=("rbf", "vertex"),
+        help="the FEniCS bar's fluid load between the coupling vertices (solid.py; default rbf)",
+    )
     parser.add_argument("--smoke", action="store_true", help=f"{SMOKE_END:g} s, no comparison")
     parser.add_argument("--out", type=Path, help="where the run is made (default: temporary)")
     parser.add_argument("--json", type=Path, help="write the comparison here (and .md beside)")
@@ -233,6 +242,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(f"no such result file: {', '.join(missing)} (write one with --json)")
         print(study_table([json.loads(path.read_text()) for path in args.summarize]))
         return 0
+    if args.load and args.solid != "fenics":
+        parser.error("--load is the FEniCS bar's (--solid fenics)")
     end = args.end_time or (SMOKE_END if args.smoke else FULL_END)
     if not (args.time_step > 0 and end > 0 and args.degree >= 1):
         parser.error("--time-step and --end-time must be positive, --degree at least 1")
@@ -240,13 +251,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--window must lie in (0, {end:g}) s, got {args.window:g}")
     root = args.out or Path(tempfile.mkdtemp(prefix="fsi3-validation-"))
     series, seconds = run_uncontrolled(
-        args.resolution, args.time_step, end, args.degree, root, args.solid
+        args.resolution, args.time_step, end, args.degree, root, args.solid, args.load
     )
     cells = cell_count(RESOLUTIONS[args.resolution])
     setup = (
         f"FSI3, {args.resolution} mesh ({cells} cells), time step {args.time_step:g} s, "
-        f"{SOLID_NAMES[args.solid]} solid of degree {args.degree}, "
-        f"to t = {end:g} s"
+        f"{SOLID_NAMES[args.solid]} solid of degree {args.degree}"
+        + (f" ({args.load} load)" if args.load else "")
+        + f", to t = {end:g} s"
     )
     print(setup)
     print(f"wall-clock: {seconds:.0f} s")
@@ -270,6 +282,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "time_step": args.time_step,
             "degree": args.degree,
             "solid": args.solid,
+            **({"load": args.load} if args.load else {}),
             "end_time": end,
             "window": args.window,
             "reference": "Turek & Hron (2006), FSI3",

@@ -9,9 +9,16 @@ and watch point (``Flap-Tip``, point A) as the deal.II program, so one
 ``solid.json`` beside this script sets the run::
 
     {"cells": [36, 4], "degree": 2,
+     "load": "rbf",            # the fluid's stress between the coupling vertices (below)
      "start_state": null,      # an .npz of Bar.save to start from (null: at rest)
      "save_dir": null,         # where to save states (null: none)
      "save_times": []}         # simulated times (s) to save the state at, and at the end
+
+``load``: ``"rbf"``, fenicsprecice's coupling expression (a radial-basis interpolant of
+the vertices' data, evaluated in Python at every quadrature point: the validated runs'),
+or ``"vertex"``, :class:`bar.VertexTraction` (linear between the vertices, assembled in
+compiled code: half the CPU of a coupled run on the coarse mesh, not yet validated over
+the benchmark's 8 s).
 
 A state saved at time t is ``<save_dir>/state-<t>.npz`` (t to the microsecond); the
 last one, at the end of the coupling, is ``<save_dir>/state-end.npz``.
@@ -20,12 +27,16 @@ last one, at the end of the coupling, is ``<save_dir>/state-end.npz``.
 import json
 import os
 
-from bar import FSI3, Bar, wetted
+from bar import FSI3, Bar, VertexTraction, wetted
 from dolfin import AutoSubDomain
 from fenicsprecice import Adapter
 
 with open("solid.json") as handle:
     SETTINGS = json.load(handle)
+
+LOAD = SETTINGS.get("load", "rbf")
+if LOAD not in ("rbf", "vertex"):
+    raise SystemExit(f"solid.json: load must be 'rbf' or 'vertex', got {LOAD!r}")
 
 precice = Adapter(adapter_config_filename="precice-adapter-config.json")
 traction = None
@@ -48,16 +59,26 @@ def start_displacement(function_space):
 
 
 def coupling_traction(function_space):
-    """The fluid's stress on the wetted faces: fenicsprecice's coupling expression, made
-    once preCICE knows the coupling vertices of the bar's function space."""
+    """The fluid's stress on the wetted faces, made once preCICE knows the coupling
+    vertices of the bar's function space (``load`` above)."""
     global traction
     precice.initialize(
         AutoSubDomain(wetted),
         read_function_space=function_space,
         write_object=start_displacement(function_space),
     )
+    if LOAD == "vertex":
+        traction = VertexTraction(function_space.mesh())
+        return traction.function
     traction = precice.create_coupling_expression()
     return traction
+
+
+def update_traction(data):
+    if LOAD == "vertex":
+        traction.update(data)
+    else:
+        precice.update_coupling_expression(traction, data)
 
 
 bar = Bar(FSI3, tuple(SETTINGS["cells"]), SETTINGS["degree"], traction=coupling_traction)
@@ -76,7 +97,7 @@ while precice.is_coupling_ongoing():
     if precice.requires_writing_checkpoint():
         precice.store_checkpoint(bar.state(), bar.time, 0)
     step = precice.get_max_time_step_size()
-    precice.update_coupling_expression(traction, precice.read_data(step))
+    update_traction(precice.read_data(step))
     bar.step(step)
     precice.write_data(bar.u)
     precice.advance(step)
