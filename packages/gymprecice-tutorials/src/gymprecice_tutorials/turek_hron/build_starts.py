@@ -154,6 +154,8 @@ def _segment(
         late = series["time"] >= times[0] - 0.5 * case.time_step
         np.savez(scratch / UNCONTROLLED, **{k: v[late] for k, v in series.items()})
         into.parent.mkdir(parents=True, exist_ok=True)
+        if into.exists():  # what is there did not load (build refuses a whole library)
+            shutil.rmtree(into)
         scratch.rename(into)
     finally:
         env.close()
