@@ -163,3 +163,17 @@ def test_each_solver_is_told_the_start_by_the_split_that_holds_it(tmp_path, monk
         env.reset(options={"split": "eval", "start": 99})
     with pytest.raises(ValueError, match="splits"):
         env.reset(options={"split": "test"})
+
+
+def test_the_build_refuses_a_folder_in_use_before_running_anything(tmp_path) -> None:
+    from gymprecice_tutorials.turek_hron.build_starts import build
+
+    library = _library(tmp_path / "lib")
+    with pytest.raises(FileExistsError, match="a library is already there"):
+        build(library)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep me")
+    with pytest.raises(FileExistsError, match="not empty"):
+        build(tmp_path / "mine")
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
+    assert not (tmp_path / ".mine-run").exists()

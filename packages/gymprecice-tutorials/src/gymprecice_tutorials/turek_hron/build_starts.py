@@ -197,6 +197,8 @@ def build(
     target = Path(out).expanduser().resolve()
     if (target / INDEX).exists():
         raise FileExistsError(f"{target / INDEX}: a library is already there; choose another --out")
+    if target.exists() and any(target.iterdir()):
+        raise FileExistsError(f"{target}: not empty; --out names a new folder for the library")
     case = _Case(resolution, time_step, degree)
     runs = target.parent / f".{target.name}-run"
     checkpoints = runs / "checkpoints"
