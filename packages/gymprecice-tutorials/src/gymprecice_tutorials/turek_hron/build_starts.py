@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from gymprecice_openfoam.case import find_time
 from gymprecice_tutorials.turek_hron.environment import TurekHronEnv
 from gymprecice_tutorials.turek_hron.series import recorded_series, run_to_end
 from gymprecice_tutorials.turek_hron.starts import (
@@ -59,14 +60,10 @@ SMOKE = (0.02, 3, 0.01, 0.01)
 def _time_dir(root: Path, value: float, tolerance: float) -> str | None:
     """The name of ``root``'s full time directory at ``value`` (s): the flow and the
     deformed mesh, not a directory of ``uniform/`` alone that coupling iterations leave."""
-    for entry in root.iterdir():
-        try:
-            near = abs(float(entry.name) - value) <= tolerance
-        except ValueError:
-            continue
-        if near and (entry / "U").is_file() and (entry / "polyMesh" / "points").is_file():
-            return entry.name
-    return None
+    name = find_time(root, value, tolerance)
+    if name is None or not (root / name / "U").is_file():
+        return None
+    return name if (root / name / "polyMesh" / "points").is_file() else None
 
 
 @dataclass(frozen=True)
