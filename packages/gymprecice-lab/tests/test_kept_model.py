@@ -331,6 +331,55 @@ def test_stop_at_ends_training_at_the_first_validation_reaching_it_and_a_rerun_t
     assert json.loads((run / "manifest.json").read_text())["result"]["timesteps"] == 10
 
 
+def test_a_run_stopped_during_a_validation_validates_that_checkpoint_when_resumed(
+    tmp_path, monkeypatch, capsys
+):
+    """A SIGTERM while the step-10 validation runs ends the run with that step's
+    checkpoint saved and no validation of it; the same command validates it before it
+    trains on, so the checkpoint is still a candidate for the kept model (and for
+    ``--stop-at``). About 15 s on the test double."""
+    import signal
+
+    from stable_baselines3.common.callbacks import EvalCallback
+
+    from gymprecice.tools.cli import main
+    from gymprecice_lab.training.callbacks import Interrupted
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sac.yml").write_text(
+        "gymprecice/PerpendicularFlapFast-v0:\n  learning_starts: 4\n  batch_size: 8\n"
+        "  net: [16, 16]\n"
+    )
+    argv = [
+        *("train", "perpendicular-flap-fast", "--double"),
+        *("--env-kwargs", '{"episode_time": 0.5, "settle_time": 0.2}'),
+        *("--algo", "sac", "--hyperparams", "sac.yml", "--timesteps", "20"),
+        *("--checkpoint-every", "10", "--stop-at=-1e9"),
+        *("--vec-env", "dummy", "--no-progress-bar", "--out", "run"),
+    ]
+    original = EvalCallback._on_step
+
+    def stopped_mid_validation(self):
+        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+            raise Interrupted(signal.SIGTERM)
+        return original(self)
+
+    monkeypatch.setattr(EvalCallback, "_on_step", stopped_mid_validation)
+    main(argv)
+    run = tmp_path / "run"
+    assert (run / "checkpoints" / "sac_10_steps.zip").is_file()
+    assert read_kept(run) is None
+    monkeypatch.setattr(EvalCallback, "_on_step", original)
+    capsys.readouterr()
+
+    assert main(argv) == 0
+    said = capsys.readouterr().out
+    assert "the resumed checkpoint scores" in said
+    assert list(np.load(run / "eval" / "evaluations.npz")["timesteps"]) == [10]
+    assert read_kept(run)["timesteps"] == 10
+    assert json.loads((run / "manifest.json").read_text())["result"]["timesteps"] == 10
+
+
 def test_stop_at_without_validation_is_refused_before_anything_runs(tmp_path, monkeypatch, capsys):
     from gymprecice.tools.cli import main
 

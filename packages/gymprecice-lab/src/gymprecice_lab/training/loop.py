@@ -103,6 +103,7 @@ def train(
         done_before = int(model.num_timesteps)
         remaining, target = _steps_to_go(params, slots, timesteps, done_before)
         callbacks = _checkpointing(params, slots, checkpoints, checkpoint_every, keep_checkpoints)
+        pending = False  # a validation the resumed checkpoint is owed
         if validate:
             every = eval_freq or checkpoint_every or 10 * rollout_chunk(params, slots)
             evaluator = eval_callback(
@@ -122,6 +123,7 @@ def train(
                 stop_at=stop_at,
             )
             callbacks.append(evaluator)
+            pending = resume is not None and _unvalidated(evaluator, done_before, every)
             if _reached(evaluator, stop_at):
                 print(
                     f"gymprecice train: the kept model already scores "
@@ -132,18 +134,28 @@ def train(
         started = time.monotonic()
         # a stop signal outside learning and the last validation waits for the save
         with hold_stop_signals() as held:
-            if remaining > 0:
+            interrupted = None
+            if pending and not held:
+                # the checkpoint resumed from was saved, but its run was stopped during
+                # the validation of that step: validate it now, or it is never a candidate
+                evaluator.init_callback(model)
+                interrupted = _validate_final(evaluator, validate_final)
+                if _reached(evaluator, stop_at):
+                    print(
+                        f"gymprecice train: the resumed checkpoint scores "
+                        f"{evaluator.best_mean_reward:.4g} >= --stop-at {stop_at:g}; "
+                        "not training on"
+                    )
+                    remaining = 0
+            if interrupted is None and remaining > 0:
                 _announce(env, n_envs, algo, target, out, agents)
                 interrupted = _learn(
                     model, remaining, callbacks, out, resume is None, progress_bar, held
                 )
-            else:
-                interrupted = None
-                if not _reached(evaluator, stop_at):
-                    print(
-                        f"gymprecice train: already trained for {done_before:,} >= "
-                        f"{timesteps:,} steps"
-                    )
+            elif interrupted is None and not _reached(evaluator, stop_at):
+                print(
+                    f"gymprecice train: already trained for {done_before:,} >= {timesteps:,} steps"
+                )
             if evaluator is not None and interrupted is None and not held:
                 interrupted = _validate_final(evaluator, validate_final)
             final = _save(model, vec, checkpoints, out, algo, normalize)
@@ -193,6 +205,14 @@ def _validate_final(evaluator: Any, validate_final: Any) -> str | None:
             "the best of the earlier validations"
         )
     return None
+
+
+def _unvalidated(evaluator: Any, step: int, every: int) -> bool:
+    """Whether ``step`` (the checkpoint a run resumes from) is a validation step whose
+    validation is not on record: a stop signal during a validation ends the run after the
+    step's checkpoint is saved, and the resumed run would validate only from the next."""
+    done = evaluator.evaluations_timesteps
+    return step > 0 and every > 0 and step % every == 0 and (not done or done[-1] < step)
 
 
 def _reached(evaluator: Any, stop_at: float | None) -> bool:
