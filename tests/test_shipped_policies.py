@@ -358,6 +358,38 @@ def test_a_policy_trained_to_see_more_ships_what_it_sees(tmp_path: Path):
     assert settings["env_kwargs"]["observation"] == "state"
 
 
+def test_a_policy_trained_on_a_feedback_law_runs_on_it_wherever_it_is_evaluated(
+    tmp_path: Path,
+):
+    """``base_feedback`` puts the classical law under the policy, whose action is added
+    to the law's: evaluated from its training directory (as ``time-to-floor`` and
+    ``scripts/train.sh`` do) or shipped, without ``--env-kwargs``, it runs on the law."""
+    policies = tmp_path / "policies"
+    law = {"gain": -1, "delay": 6}
+    train = ["jet-cylinder-fast", "--double", "--episode-time", "0.1", "--net", "8,8"]
+    train += ["--env-kwargs", json.dumps({"base_feedback": law})]
+    ppo = ["--n-steps", "8", "--batch-size", "8", "--n-epochs", "1", "--timesteps", "8"]
+    quick = ["--no-validation", "--no-progress-bar"]
+    _ok(_cli(tmp_path, "train", *train, *ppo, *quick, "--out", "train"))
+    common = ["jet-cylinder-fast", "--double", "--episode-time", "0.1"]
+    _ok(_cli(tmp_path, "evaluate", *common, "--policy", "train", "--model", "final", "--out", "ev"))
+    settings = json.loads((tmp_path / "ev" / "manifest.json").read_text())["settings"]
+    assert settings["env_kwargs"]["base_feedback"] == law
+    _ok(
+        _cli(
+            tmp_path,
+            "ship-policy",
+            "train",
+            "--model",
+            "final",
+            "--name",
+            "on-law",
+            policies=policies,
+        )
+    )
+    assert read_metadata(policies / "on-law")["env_kwargs"]["base_feedback"] == law
+
+
 def test_transfer_to_another_env_keeps_the_training_bound(tiny, tmp_path):
     root, policies = tiny["root"], tiny["policies"]
     out = _ok(

@@ -6,7 +6,8 @@ another bound would act with other flow rates (JetCylinderFastEnv's jets are bou
 2.5e-5 m³/s, JetCylinderEnv's by 2.5e-4: ten times as strong). So ``policy.json`` keeps
 the keyword arguments that shape what the policy does (``env_kwargs``: the bound,
 ``max_flow_rate`` or ``max_omega``, ``jet_width`` when training set it, and the
-``observation`` it was trained to see, when training chose one) and
+``observation`` it was trained to see, and a classical law run under it such as
+``base_feedback``, when training chose them) and
 evaluation rebuilds any env with them, saying so in one line when the env is not the one
 the policy was trained on (a transfer). An env that does not take them, or whose
 observation does not have the policy's shape, is refused in one line. A training
@@ -29,6 +30,7 @@ from gymprecice_lab.training.shared_policy import per_row
 
 __all__ = [
     "ACTUATOR_KWARGS",
+    "BASE_LAW_KWARGS",
     "BOUND_ATTRS",
     "MACHINE_KWARGS",
     "OBSERVATION_KWARGS",
@@ -45,6 +47,10 @@ ACTUATOR_KWARGS = ("jet_width",)
 #: a plate policy trained with ``observation="integral"`` takes five numbers, not the
 #: default four, and must get them wherever it runs.
 OBSERVATION_KWARGS = ("observation",)
+#: Keyword arguments that run a classical law under the policy, carried over when training
+#: set them: a policy trained on ``base_feedback`` learnt what to add to the feedback law,
+#: and without the law under it, it is not the controller that was trained.
+BASE_LAW_KWARGS = ("base_feedback", "base_damping")
 #: Training keyword arguments that belong to the machine, not to the policy.
 MACHINE_KWARGS = ("run_root", "options", "case_dir")
 
@@ -74,7 +80,7 @@ def describe_env(env: LabEnv, kwargs: Mapping[str, Any]) -> dict[str, Any]:
             shaping: dict[str, Any] = {
                 k: float(getattr(inner, k)) for k in BOUND_ATTRS if hasattr(inner, k)
             }
-            carried = (*ACTUATOR_KWARGS, *OBSERVATION_KWARGS)
+            carried = (*ACTUATOR_KWARGS, *BASE_LAW_KWARGS, *OBSERVATION_KWARGS)
             shaping.update({k: kwargs[k] for k in carried if k in kwargs})
             return {
                 "env": {"name": env.name, "id": env.env_id},
