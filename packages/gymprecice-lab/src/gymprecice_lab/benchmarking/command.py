@@ -73,6 +73,7 @@ from gymprecice_lab.benchmarking.remote_commands import RemoteCommand
 from gymprecice_lab.benchmarking.scores import controller_entry, start_scores
 from gymprecice_lab.benchmarking.seed_training import (
     restarts,
+    stop_at_of,
     train_seed,
     trained,
     training_record,
@@ -225,10 +226,10 @@ def _train_seeds(settings: BenchmarkSettings, plan: _Plan) -> None:
         for seed in range(settings.seeds):
             run = plan.run("train", algo, seed)
             label = f"{algo} seed {seed}"
-            if trained(run, settings.timesteps):
+            argv = train_argv(settings, algo, seed, run, plan.extra[algo])
+            if trained(run, settings.timesteps, stop_at_of(argv)):
                 print(f"gymprecice benchmark: {label}: trained already, kept", flush=True)
                 continue
-            argv = train_argv(settings, algo, seed, run, plan.extra[algo])
             if settings.ray:
                 argv += ["--ray", settings.ray]
             jobs.append(((argv, str(run), label, settings.retries), label))
