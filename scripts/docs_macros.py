@@ -60,6 +60,10 @@ HEADLINES: dict[str, tuple[str, str, str]] = {
     "jet-cylinder-fast-settled": ("settled_floor_fraction", "median", "percent"),
     # the same with 8 gradient steps per batch (update-to-data ratio 4)
     "jet-cylinder-fast-utd4": ("settled_floor_fraction", "median", "percent"),
+    # utd4 on the feedback law (base_feedback), stopped at 95 % of the floor on validation
+    "jet-cylinder-fast-residual": ("settled_floor_fraction", "median", "percent"),
+    # the same, stopped at 97 %, up to 6,000 actions
+    "jet-cylinder-fast-residual-97": ("settled_floor_fraction", "median", "percent"),
     # 16,000 actions, the kept models: results.json as the benchmark wrote it
     "rotating-cylinder-fast": ("settled_floor_fraction", "median", "percent"),
     # the first five seeds, 4,000 actions, final models: the headline figures only

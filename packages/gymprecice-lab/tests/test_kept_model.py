@@ -402,3 +402,22 @@ def test_every_command_writes_a_duration_the_same_way() -> None:
     assert duration_text(3725, to_the_minute=True) == "1 h 02 min"
     assert duration_text(float("inf")) == "not reached"
     assert duration_text(None) == "an unknown time"
+
+
+def test_a_rollout_on_the_validation_starts_runs_each_once_and_no_held_out_one(
+    tmp_path, monkeypatch
+):
+    """``--validation-starts``: a model or a law looked at where models are chosen, over
+    episodes as long as the evaluation's; the manifest says which starts it ran. About
+    10 s on the test double."""
+    from gymprecice.tools.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    argv = ["baseline", "jet-cylinder-fast", "--double", "--episode-time", "0.2"]
+    assert main([*argv, "--validation-starts", "--out", "run"]) == 0
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    labels = [episode["start_label"] for episode in summary["episodes"]]
+    assert labels == ["t = 4.74 s", "t = 4.9 s"]
+    settings = json.loads((tmp_path / "run" / "manifest.json").read_text())["settings"]
+    assert settings["starts"] == "validation" and settings["held_out_starts"] is None
+    assert not set(labels) & {"t = 4.82 s", "t = 4.98 s"}  # the held-out starts

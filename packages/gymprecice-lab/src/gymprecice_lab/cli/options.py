@@ -235,6 +235,13 @@ ALL_STARTS = option(
     help="one episode from every held-out start of the env (overrides --episodes; an env "
     "whose lab card declares no held-out starts: one from each of its first five seeds)",
 )
+VALIDATION_STARTS = option(
+    "--validation-starts",
+    action="store_true",
+    help="one episode from every validation start of the env instead (the starts that "
+    "choose a trained model, never the held-out ones that judge it): how a kept model "
+    "or a law does there, over episodes as long as the evaluation's",
+)
 BASELINE = option(
     "--baseline",
     type=Path,

@@ -32,6 +32,7 @@ def _rollouts() -> list[Command]:
                 o.MODEL,
                 o.EPISODES,
                 o.ALL_STARTS,
+                o.VALIDATION_STARTS,
                 o.VIDEO,
                 o.STOCHASTIC,
                 o.BASELINE,
@@ -45,7 +46,7 @@ def _rollouts() -> list[Command]:
             "the env's own units (the cylinders: jets closed, cylinder at rest), with the "
             "env keywords of its lab card's 'uncontrolled' where it declares them: what a "
             "controller is judged against; same files as evaluate.",
-            (*env, o.EPISODES, o.ALL_STARTS, o.VIDEO),
+            (*env, o.EPISODES, o.ALL_STARTS, o.VALIDATION_STARTS, o.VIDEO),
             functools.partial(run, "baseline"),
         ),
         Command(
@@ -55,7 +56,15 @@ def _rollouts() -> list[Command]:
             "open-loop control a learned controller should beat (at --frequency, else its "
             "lab card's open_loop_frequency, else a tenth of its action rate); same files "
             "as evaluate.",
-            (*env, *o.OPEN_LOOP, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.BASELINE),
+            (
+                *env,
+                *o.OPEN_LOOP,
+                o.EPISODES,
+                o.ALL_STARTS,
+                o.VALIDATION_STARTS,
+                o.VIDEO,
+                o.BASELINE,
+            ),
             functools.partial(run, "open-loop"),
         ),
         Command(
@@ -68,7 +77,7 @@ def _rollouts() -> list[Command]:
             "else its card's feedback_signal) is fed back to the actuator: a = clip(centre - "
             "gain * half_range * signal(t - delay actions)). `gymprecice sweep` tunes either "
             f"(--feedback-grid, --feedback-gains/--feedback-delays). {_feedback_listing()}",
-            (*env, *o.FEEDBACK, o.EPISODES, o.ALL_STARTS, o.VIDEO, o.BASELINE),
+            (*env, *o.FEEDBACK, o.EPISODES, o.ALL_STARTS, o.VALIDATION_STARTS, o.VIDEO, o.BASELINE),
             functools.partial(run, "feedback"),
         ),
     ]

@@ -29,6 +29,8 @@ class RolloutSettings(EnvSettings):
     episodes: int
     #: ``--all-starts``: one episode from every held-out start (overrides ``episodes``)
     all_starts: bool
+    #: ``--validation-starts``: one episode from every validation start instead
+    validation_starts: bool = False
     #: ``--video [FILE]``: None without it, "" for the default file in the output
     video: str | None
 

@@ -73,7 +73,12 @@ from gymprecice_lab.common.registered_env import (
     default_out,
 )
 from gymprecice_lab.common.requirements import require_solvers
-from gymprecice_lab.common.starts import StartsError, evaluation_starts, held_out_starts
+from gymprecice_lab.common.starts import (
+    StartsError,
+    evaluation_starts,
+    held_out_starts,
+    validation_starts,
+)
 from gymprecice_lab.common.wrapped_env import (
     load_model,
     load_normalizer,
@@ -261,7 +266,11 @@ def _rollout_command(command: str, settings: RolloutSettings) -> int:
             "env_id": env_info.env_id,
             "env_kwargs": kwargs,
             "episodes": episodes,
-            "held_out_starts": list(starts) if starts is not None else None,
+            "starts": "validation" if settings.validation_starts else "held-out",
+            "held_out_starts": (
+                list(starts) if starts is not None and not settings.validation_starts else None
+            ),
+            "validation_starts": list(starts) if settings.validation_starts else None,
             "double": settings.double,
             "video": str(video) if video is not None else None,
         }
@@ -280,6 +289,7 @@ def _rollout_command(command: str, settings: RolloutSettings) -> int:
             episodes=episodes,
             seed=seed,
             every_start=starts is not None,
+            starts="validation" if settings.validation_starts else "held-out",
             reference=env_info.reference,
             video=video,
         )
@@ -346,6 +356,11 @@ def _episodes(
 ) -> tuple[int, tuple[Any, ...] | None]:
     """How many episodes to run and, with ``--all-starts``, the starts they run from
     (None without it: each episode's start is drawn by its seed)."""
+    if settings.validation_starts:
+        try:
+            return len(validation_starts(env)), tuple(validation_starts(env))
+        except StartsError as exc:
+            raise _Unusable(str(exc)) from None
     if not settings.all_starts:
         return settings.episodes, None
     try:
