@@ -171,6 +171,21 @@ def test_a_sweep_on_the_validation_starts_tunes_without_a_held_out_start(
         main(["compare", "tune"])
 
 
+def test_a_sweep_on_the_validation_starts_runs_each_of_them_once(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """The jet cylinder has two validation starts: without ``--episodes`` each runs once
+    (not three episodes, the first start twice). About 5 s on the double."""
+    monkeypatch.chdir(tmp_path)
+    argv = ["sweep", "jet-cylinder-fast", "--double", "--episode-time", "0.1"]
+    argv += ["--starts", "validation", "--constants", "0", "--amplitudes=", "--out", "tune"]
+    assert main(argv) == 0, capsys.readouterr()
+    assert "1 controller(s) x 2 validation start(s)" in capsys.readouterr().out
+    episodes = json.loads((tmp_path / "tune" / "uncontrolled" / "summary.json").read_text())
+    labels = [e["start_label"] for e in episodes["episodes"]]
+    assert labels == ["t = 4.74 s", "t = 4.9 s"]
+
+
 def test_the_plate_pid_module_runs_the_labs_commands(tmp_path: Path, monkeypatch, capsys) -> None:
     """``python -m gymprecice_tutorials.heated_plate.pid``, as the docs gave it, runs the
     lab's commands: a tuning sweep on validation starts, then the held-out sweep of its

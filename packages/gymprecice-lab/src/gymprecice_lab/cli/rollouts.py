@@ -97,7 +97,11 @@ def _sweep() -> Command:
         (
             *o.env_options(rollout=True),
             *o.SWEEP_GRID,
-            o.EPISODES.but(default=3, help="starts per controller"),
+            o.EPISODES.but(
+                default=None,
+                help="starts per controller (default: 3 on the held-out starts; with "
+                "--starts validation, each validation start once)",
+            ),
             o.option(
                 "--starts",
                 choices=("held-out", "validation"),

@@ -91,8 +91,9 @@ class SweepSettings(EnvSettings):
     feedback_grid: str | None
 
     # -- the rollouts ---------------------------------------------------------------------
-    #: ``--episodes``: starts per controller
-    episodes: int
+    #: ``--episodes``: starts per controller (None: three on the held-out starts, each
+    #: validation start once with ``--starts validation``)
+    episodes: int | None
     #: ``--workers``: controllers run at once
     workers: int
     #: ``--starts``: the env's held-out starts, or its validation starts (to tune a law)

@@ -38,6 +38,7 @@ rollouts (env, its settings, starts, seed) and runs only the others.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -67,6 +68,10 @@ from gymprecice_lab.rollouts.controllers import sine_controller, zero_controller
 from gymprecice_lab.rollouts.feedback import FeedbackController, own_law_grid
 from gymprecice_lab.rollouts.records import episodes_by_start
 from gymprecice_lab.rollouts.rollout import rollout
+
+#: ``--episodes``' default on the held-out starts: three (from each of the env's held-out
+#: starts in turn, or three seeds where it has none); on the validation starts, each once
+HELD_OUT_EPISODES = 3
 
 __all__ = [
     "SweepJob",
@@ -333,7 +338,11 @@ def sweep_command(settings: SweepSettings) -> int:
         status = require_solvers(env_info, "sweep", verbose=settings.require_solvers, kwargs=kwargs)
         if status:
             return status
-    box = _action_box(env_info, kwargs, starts)
+    box, validation = _action_box(env_info, kwargs, starts)
+    if starts == "validation" and settings.episodes is None:
+        settings = dataclasses.replace(settings, episodes=validation)
+    elif settings.episodes is None:
+        settings = dataclasses.replace(settings, episodes=HELD_OUT_EPISODES)
     jobs = sweep_jobs(
         box,
         settings.constants,
@@ -417,15 +426,17 @@ def _grid(settings: SweepSettings, env_info: LabEnv) -> _Grid:
 
 def _action_box(
     env_info: LabEnv, kwargs: dict[str, Any], starts: str = "held-out"
-) -> tuple[float, float]:
+) -> tuple[tuple[float, float], int]:
     """The action's low and high on its first dimension, read from an env built (no
-    solver starts before a reset) and closed; refused unless a bounded Box."""
+    solver starts before a reset) and closed, refused unless a bounded Box; and how many
+    validation starts the env has (0 unless ``starts`` is "validation")."""
     probe = make_env_checked(env_info.name, env_info.env_id, 0, kwargs, rescale=False)
+    validation = 0
     try:
         space = probe.action_space
         held_out_starts(probe)  # a card that declares starts the env does not name
         if starts == "validation":
-            validation_starts(probe)
+            validation = len(validation_starts(probe))
     except StartsError as exc:
         raise SystemExit(f"gymprecice sweep: {exc}") from None
     finally:
@@ -435,7 +446,7 @@ def _action_box(
             f"gymprecice sweep: {env_info.name}'s action space {space} is not a bounded Box; "
             "the sweep's constants and sinusoids need one"
         )
-    return float(np.ravel(space.low)[0]), float(np.ravel(space.high)[0])
+    return (float(np.ravel(space.low)[0]), float(np.ravel(space.high)[0])), validation
 
 
 def _run_unfinished(
