@@ -421,3 +421,31 @@ def test_a_rollout_on_the_validation_starts_runs_each_once_and_no_held_out_one(
     settings = json.loads((tmp_path / "run" / "manifest.json").read_text())["settings"]
     assert settings["starts"] == "validation" and settings["held_out_starts"] is None
     assert not set(labels) & {"t = 4.82 s", "t = 4.98 s"}  # the held-out starts
+
+
+def test_validation_time_sets_the_validation_episodes_and_a_resume_over_others_starts_afresh(
+    tmp_path, monkeypatch, capsys
+):
+    """``--validation-time``: the validation episodes last that long (here 0.3 s against
+    the training's 0.1 s and the default's settle time plus 0.1 s); the kept model's
+    record says so. A run resumed over another length does not compare its scores with
+    the earlier ones: it validates its checkpoint again. About 30 s on the test double."""
+    from gymprecice.tools.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sac.yml").write_text(
+        "gymprecice/JetCylinderFast-v0:\n  learning_starts: 4\n  batch_size: 8\n  net: [16, 16]\n"
+    )
+    argv = [
+        *("train", "jet-cylinder-fast", "--double", "--episode-time", "0.1"),
+        *("--algo", "sac", "--hyperparams", "sac.yml", "--checkpoint-every", "8"),
+        *("--vec-env", "dummy", "--no-progress-bar", "--out", "run"),
+    ]
+    assert main([*argv, "--timesteps", "8", "--validation-time", "0.3"]) == 0
+    run = tmp_path / "run"
+    assert read_kept(run)["episode_time"] == pytest.approx(0.3)
+    assert list(np.load(run / "eval" / "evaluations.npz")["timesteps"]) == [8]
+    assert main([*argv, "--timesteps", "16", "--validation-time", "0.2"]) == 0
+    assert read_kept(run)["episode_time"] == pytest.approx(0.2)
+    # the checkpoint resumed from is validated again over the new length, then step 16
+    assert list(np.load(run / "eval" / "evaluations.npz")["timesteps"]) == [8, 16]

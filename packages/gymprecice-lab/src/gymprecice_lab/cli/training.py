@@ -179,6 +179,17 @@ _KEEPING = (
         "--timesteps)",
     ),
     option(
+        "--validation-time",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="simulated seconds of each validation episode, for an env that takes "
+        "episode_time: e.g. 10 on the cylinders, as long as `evaluate`'s episodes, so that "
+        "a policy whose drag drifts after a few seconds is not kept for its start (None: "
+        "where the card declares a settled score, its settle time and one training "
+        "episode, else one training episode)",
+    ),
+    option(
         "--n-eval-episodes",
         type=positive_int,
         default=None,

@@ -51,6 +51,8 @@ class TrainSettings(EnvSettings):
     eval_freq: int | None
     #: ``--stop-at SCORE``: stop at the first validation scoring at least this
     stop_at: float | None
+    #: ``--validation-time SECONDS``: each validation episode's length (None: the default)
+    validation_time: float | None
     n_eval_episodes: int | None
     no_validation: bool
     #: ``--fresh``: start over even where ``--out`` has checkpoints

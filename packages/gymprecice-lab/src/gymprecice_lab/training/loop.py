@@ -45,6 +45,7 @@ def train(
     keep_checkpoints: int = 5,
     eval_freq: int | None = None,
     stop_at: float | None = None,
+    validation_time: float | None = None,
     n_eval_episodes: int | None = None,
     validate: bool = True,
     started_at: float | None = None,
@@ -121,6 +122,7 @@ def train(
                 training_vec=model.get_env(),
                 trained_before=trained_before,
                 stop_at=stop_at,
+                validation_time=validation_time,
             )
             callbacks.append(evaluator)
             pending = resume is not None and _unvalidated(evaluator, done_before, every)

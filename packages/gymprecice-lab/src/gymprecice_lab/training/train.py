@@ -133,6 +133,7 @@ def train_command(settings: TrainSettings) -> int:
         keep_checkpoints=settings.keep_checkpoints,
         eval_freq=settings.eval_freq,
         stop_at=settings.stop_at,
+        validation_time=settings.validation_time,
         n_eval_episodes=settings.n_eval_episodes,
         validate=not settings.no_validation,
         started_at=started_at,

@@ -137,6 +137,7 @@ def eval_callback(
     training_vec: Any = None,
     trained_before: float = 0.0,
     stop_at: float | None = None,
+    validation_time: float | None = None,
 ) -> EvalCallback:
     """The validation callback of a training run into ``out``.
 
@@ -149,6 +150,10 @@ def eval_callback(
     (:func:`side_by_side`), in a vector env of kind ``vec_env`` (``--vec-env``): while
     they run, the training envs wait, so their cores are free. ``stop_at`` stops training
     after the first validation whose score reaches it (the kept model is saved first).
+    ``validation_time`` (simulated seconds) sets the validation episodes' length, for an
+    env that takes ``episode_time`` (default: where the score is a settled one, the
+    card's settle time and a training episode, else a training episode); a resumed run
+    validated over episodes of another length starts its validations afresh.
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -164,12 +169,14 @@ def eval_callback(
     finally:
         probe.close()
     reference = settled_reference(env.card)
-    if reference is not None and reference.settle_time > 0:
-        if episode_time is None:  # the card says it takes one, but the env does not tell
-            reference = None
-        else:
-            episode_time = validation_episode_time(reference, float(episode_time))
-            env_kwargs = {**env_kwargs, "episode_time": episode_time}
+    if reference is not None and reference.settle_time > 0 and episode_time is None:
+        reference = None  # the card says it takes one, but the env does not tell
+    if validation_time is not None and episode_time is not None:
+        episode_time = float(validation_time)
+        env_kwargs = {**env_kwargs, "episode_time": episode_time}
+    elif reference is not None and reference.settle_time > 0:
+        episode_time = validation_episode_time(reference, float(episode_time))
+        env_kwargs = {**env_kwargs, "episode_time": episode_time}
     parts = side_by_side(len(labels), n_envs)
     fns = [
         functools.partial(
@@ -229,9 +236,13 @@ def eval_callback(
         previous = json.loads((out / "eval" / "best.json").read_text())
     except (OSError, ValueError):
         previous = {}
-    # a run resumed by a gymprecice that scores otherwise starts its validations afresh:
-    # a return and a fraction of a floor do not compare
-    if previous.get("score", score_name(None)) == score_name(reference):
+    # a run resumed by a gymprecice that scores otherwise, or over episodes of another
+    # length, starts its validations afresh: a return and a fraction of a floor do not
+    # compare, nor a drag settled over 2 s and one over 8 s
+    same_episodes = previous.get("episode_time", episode_time) == (
+        float(episode_time) if episode_time is not None else None
+    )
+    if previous.get("score", score_name(None)) == score_name(reference) and same_episodes:
         try:
             callback.best_mean_reward = float(previous["mean_return"])
         except (KeyError, TypeError, ValueError):
