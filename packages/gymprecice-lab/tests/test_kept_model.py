@@ -245,7 +245,7 @@ def test_openfoam_snapshot_library_keeps_a_validation_set_apart():
 
 @pytest.mark.slow
 def test_validation_runs_beside_a_normalised_overlapped_learner(tmp_path):
-    """scripts/train.sh's recipe on the test double (normalisation, updates overlapped
+    """scripts/sac-overlap.yml's recipe on the test double (normalisation, updates overlapped
     with the solvers, two envs): the validation envs run side by side, one per
     validation start, and the kept model keeps its normalisation. SB3 syncs the
     statistics by walking both wrapper chains in step, which the overlapped learner's
