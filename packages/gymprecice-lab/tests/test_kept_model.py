@@ -302,7 +302,8 @@ def test_stop_at_ends_training_at_the_first_validation_reaching_it_and_a_rerun_t
     manifest says so, the benchmark counts the seed as trained, and the same command
     again trains no further. About 15 s."""
     from gymprecice.tools.cli import main
-    from gymprecice_lab.benchmarking.seed_training import stop_at_of, trained
+    from gymprecice_lab.benchmarking.seed_training import trained
+    from gymprecice_lab.cli.settings import from_argv
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "sac.yml").write_text(
@@ -324,7 +325,7 @@ def test_stop_at_ends_training_at_the_first_validation_reaching_it_and_a_rerun_t
     result = json.loads((run / "manifest.json").read_text())["result"]
     assert result["timesteps"] == 10
     assert result["stopped_at"]["timesteps"] == read_kept(run)["timesteps"] == 10
-    assert trained(run, 40) and trained(run, 40, stop_at_of(argv))
+    assert trained(run, 40) and trained(run, 40, from_argv(argv).stop_at)
     # a benchmark that now stops higher than the score this run stopped at trains it on
     assert not trained(run, 40, 1e9)
 

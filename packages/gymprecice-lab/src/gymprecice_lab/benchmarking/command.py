@@ -73,7 +73,6 @@ from gymprecice_lab.benchmarking.remote_commands import RemoteCommand
 from gymprecice_lab.benchmarking.scores import controller_entry, start_scores
 from gymprecice_lab.benchmarking.seed_training import (
     restarts,
-    stop_at_of,
     train_seed,
     trained,
     training_record,
@@ -227,7 +226,7 @@ def _train_seeds(settings: BenchmarkSettings, plan: _Plan) -> None:
             run = plan.run("train", algo, seed)
             label = f"{algo} seed {seed}"
             argv = train_argv(settings, algo, seed, run, plan.extra[algo])
-            if trained(run, settings.timesteps, stop_at_of(argv)):
+            if trained(run, settings.timesteps, from_argv(argv).stop_at):
                 print(f"gymprecice benchmark: {label}: trained already, kept", flush=True)
                 continue
             if settings.ray:

@@ -20,14 +20,7 @@ from typing import Any
 from gymprecice_lab.benchmarking.checks import BenchmarkError
 from gymprecice_lab.common.command_runs import exit_status_of, parse_command
 
-__all__ = [
-    "restarts",
-    "stop_at_of",
-    "train_seed",
-    "trained",
-    "training_record",
-    "worker_train_seed",
-]
+__all__ = ["restarts", "train_seed", "trained", "training_record", "worker_train_seed"]
 
 #: a seed's failed training attempts (a JSON list, one line of text each)
 FAILURES_FILE = "benchmark-failures.json"
@@ -50,17 +43,6 @@ def trained(run: Path, timesteps: int, stop_at: float | None = None) -> bool:
         and not result.get("interrupted")
         and (int(result.get("timesteps") or 0) >= timesteps or reached)
     )
-
-
-def stop_at_of(argv: list[str]) -> float | None:
-    """The ``--stop-at`` of a ``gymprecice train`` command line (None: it has none)."""
-    value = None
-    for i, arg in enumerate(argv):
-        if arg == "--stop-at" and i + 1 < len(argv):
-            value = argv[i + 1]
-        elif arg.startswith("--stop-at="):
-            value = arg.split("=", 1)[1]
-    return float(value) if value is not None else None
 
 
 def _train_once(argv: list[str]) -> int:

@@ -358,9 +358,10 @@ def _episodes(
     (None without it: each episode's start is drawn by its seed)."""
     if settings.validation_starts:
         try:
-            return len(validation_starts(env)), tuple(validation_starts(env))
+            labels = tuple(validation_starts(env))
         except StartsError as exc:
             raise _Unusable(str(exc)) from None
+        return len(labels), labels
     if not settings.all_starts:
         return settings.episodes, None
     try:
