@@ -65,6 +65,7 @@ HEADLINES: dict[str, tuple[str, str, str]] = {
     "jet-cylinder-fast-residual": ("settled_floor_fraction", "median", "percent"),
     # the same, stopped at 97 %, up to 6,000 actions
     "jet-cylinder-fast-residual-97": ("settled_floor_fraction", "median", "percent"),
+    # the same validated over 10 s every 1,600 actions: the recipe of scripts/train.sh
     "jet-cylinder-fast-residual-10s": ("settled_floor_fraction", "median", "percent"),
     # 16,000 actions, the kept models: results.json as the benchmark wrote it
     "rotating-cylinder-fast": ("settled_floor_fraction", "median", "percent"),
