@@ -4,6 +4,7 @@ from pathlib import Path
 
 import pytest
 
+from gymprecice.env import rundir
 from gymprecice.env.config import load_config
 from gymprecice.env.rundir import create_run_directory
 from gymprecice.plugin.errors import ConfigError
@@ -45,3 +46,25 @@ def test_run_root_inside_the_case_is_not_copied_recursively(case_dir: Path) -> N
     second = create_run_directory(cfg, 1, case_dir / "runs")
     assert not (second.root / "runs").exists()
     assert (first.root / "fluid").is_dir()
+
+
+def test_a_copy_cut_short_leaves_no_run_directory_and_the_next_run_makes_it(
+    case_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A command killed while it copies the case (the sweep of a benchmark killed with
+    SIGKILL) must leave nothing the next run would refuse as foreign."""
+    cfg = load_config(case_dir)
+    old = create_run_directory(cfg, 0, tmp_path / "runs")
+
+    def killed(*args: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(rundir, "write_with_exchange_directory", killed)
+    with pytest.raises(KeyboardInterrupt):
+        create_run_directory(cfg, 0, tmp_path / "runs")
+    assert not old.root.exists()
+    assert (tmp_path / "runs" / ".env_0.new" / "fluid").is_dir()  # the half-made copy
+    monkeypatch.undo()
+    run = create_run_directory(cfg, 0, tmp_path / "runs")
+    assert (run.root / "fluid" / "input.txt").read_text() == "pristine\n"
+    assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == ["env_0"]

@@ -94,6 +94,12 @@ def create_run_directory(
 ) -> RunDirectory:
     """Make ``<run_root>/env_<idx>`` as a fresh copy of the case directory.
 
+    The copy is made under a hidden name beside it and renamed into place, and an old
+    directory is renamed away before it is deleted: a command killed at any instant leaves
+    either a whole run directory with its marker or none, never a half-copied one that
+    the next run would have to refuse as foreign. The hidden leftovers of such a kill are
+    deleted by the next run of the same env index.
+
     A previous run directory of the same env is replaced only when it carries gymprecice's
     marker; any other existing directory is left alone and reported, so a mistyped
     ``run_root`` can never delete a user's data. What the old directory's pid registry
@@ -107,6 +113,10 @@ def create_run_directory(
             f"{config.where()}: environment.run_root puts env {env_index}'s run directory at "
             f"{root}, which contains the case itself; choose a run_root outside the case"
         )
+    staging, trash = _staging_dir(root), _trash_dir(root)
+    for leftover in (staging, trash):  # of a command killed while it made or removed root
+        if leftover.exists():
+            shutil.rmtree(leftover)
     if root.exists():
         if not (root / MARKER).is_dir():
             raise ConfigError(
@@ -114,12 +124,13 @@ def create_run_directory(
                 "Move it away or set environment.run_root to another directory."
             )
         kill_recorded_groups(root, grace=config.model.timeouts.kill_grace)
-        shutil.rmtree(root)
+        os.rename(root, trash)
+        shutil.rmtree(trash)
     root.parent.mkdir(parents=True, exist_ok=True)
     ignore_below_case = _ignored_run_roots(case, root)
     shutil.copytree(
         case,
-        root,
+        staging,
         symlinks=False,
         ignore=lambda directory, names: [
             n
@@ -127,12 +138,25 @@ def create_run_directory(
             if n in _NEVER_COPIED or (Path(directory) / n).resolve() in ignore_below_case
         ],
     )
-    (root / MARKER).mkdir(exist_ok=True)
-    exchange = root / EXCHANGE_DIR_NAME
-    exchange.mkdir(exist_ok=True)
+    (staging / MARKER).mkdir(exist_ok=True)
+    (staging / EXCHANGE_DIR_NAME).mkdir(exist_ok=True)
+    exchange = root / EXCHANGE_DIR_NAME  # the path the solvers will see, after the rename
     precice_file = root / config.precice_file.relative_to(case)
-    write_with_exchange_directory(config.precice_file, precice_file, exchange)
+    write_with_exchange_directory(
+        config.precice_file, staging / config.precice_file.relative_to(case), exchange
+    )
+    os.rename(staging, root)
     return RunDirectory(root=root, exchange_dir=exchange, precice_config_file=precice_file)
+
+
+def _staging_dir(root: Path) -> Path:
+    """Where ``root`` is copied before it is renamed into place."""
+    return root.with_name(f".{root.name}.new")
+
+
+def _trash_dir(root: Path) -> Path:
+    """Where an old ``root`` is renamed before it is deleted."""
+    return root.with_name(f".{root.name}.old")
 
 
 def _ignored_run_roots(case: Path, root: Path) -> set[Path]:
