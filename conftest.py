@@ -7,6 +7,9 @@ The variables below are what ``scripts/test.sh`` and CI set (docs/contributing/t
   time (run before the stack is built, so that a broken change fails in minutes);
   ``GYMPRECICE_TIER=rest`` runs the others, and again every test that skipped in the fast
   tier (listed in the file ``GYMPRECICE_TIER_SKIPPED``): together the two are the whole suite.
+  The rest splits in two that run side by side: ``GYMPRECICE_TIER=ray``, the tests that
+  start a Ray cluster (they mostly wait: for nodes, heartbeats, actors restarted), and
+  ``GYMPRECICE_TIER=local``, all the others.
 * ``GYMPRECICE_DURATIONS=<file>``: the session's wall-clock and every test's time (set-up,
   call and tear-down; wall and CPU seconds) are written there as JSON, slowest first, for
   ``scripts/suite_report.py``'s budget check.
@@ -34,7 +37,8 @@ import pytest
 #: proves nothing and hides a broken set-up.
 REQUIRE_REAL_ENV = "GYMPRECICE_REQUIRE_REAL"
 REAL_MARKERS = ("precice", "openfoam", "dealii", "fenics")
-#: ``fast`` or ``rest``: which tier of the suite this session runs (unset: all of it).
+#: ``fast`` or ``rest`` (or the rest's two parts, ``ray`` and ``local``): which tier of the
+#: suite this session runs (unset: all of it).
 TIER_ENV = "GYMPRECICE_TIER"
 #: The file the fast tier lists its skipped tests in, and the rest tier runs them from.
 TIER_SKIPPED_ENV = "GYMPRECICE_TIER_SKIPPED"
@@ -175,20 +179,28 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         partial.replace(_settings[GROUPS_KEY])
 
 
+#: The values of ``GYMPRECICE_TIER``: ``rest`` is ``ray`` and ``local`` together.
+TIERS = ("fast", "rest", "ray", "local")
+
+
 def _select_tier(config: pytest.Config, items: list[pytest.Item]) -> None:
     tier = _settings.get(TIER_ENV, "")
     if not tier:
         return
-    if tier not in ("fast", "rest"):
-        raise pytest.UsageError(f"{TIER_ENV}={tier!r}: use fast, rest, or leave it unset")
+    if tier not in TIERS:
+        raise pytest.UsageError(
+            f"{TIER_ENV}={tier!r}: use fast, rest (or its parts ray and local), or leave it unset"
+        )
     again: set[str] = set()
     listed = _settings.get(TIER_SKIPPED_ENV)
-    if tier == "rest" and listed and Path(listed).is_file():
+    if tier != "fast" and listed and Path(listed).is_file():
         again = set(Path(listed).read_text().split())
     kept, deselected = [], []
     for item in items:
         fast = in_fast_tier(item)
         keep = fast if tier == "fast" else (not fast or item.nodeid in again)
+        if keep and tier in ("ray", "local"):
+            keep = (xdist_group(item) == RAY_GROUP) == (tier == "ray")
         (kept if keep else deselected).append(item)
     if deselected:
         config.hook.pytest_deselected(items=deselected)
@@ -260,6 +272,7 @@ class _SessionClock:
 
     def __init__(self) -> None:
         self.started = self.written = time.monotonic()
+        self.started_at = time.time()
         self.tests: dict[str, dict] = {}
 
     def add(self, report: pytest.TestReport) -> None:
@@ -320,6 +333,8 @@ def _write_durations(*, finished: bool) -> None:
     ]
     summary = {
         "tier": _settings.get(TIER_ENV) or "all",
+        # when it started (seconds since the epoch): sessions run side by side overlap
+        "started_at": round(_clock.started_at, 3),
         "wall_s": round(time.monotonic() - _clock.started, 3),
         "finished": finished,
     }

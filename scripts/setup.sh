@@ -20,6 +20,8 @@
 #    sources into a per-user prefix (reused by every clone; a second run takes seconds).
 #    Sources: $GYMPRECICE_SOURCES (an offline mirror of the release archives; default: a
 #    `vendor/` folder in `../shared/` beside the checkout, where one exists), else downloaded.
+#    Once preCICE is built, two of the steps that need it build side by side (`--at-once
+#    2`): each keeps one core busy for much of its build (docs/contributing/test-suite.md).
 #    A piece that cannot be built is reported with its log and the fix; the rest of the
 #    set-up goes on, and the tests that need that piece skip (fail under
 #    GYMPRECICE_REQUIRE_REAL=1, as in CI).
@@ -270,7 +272,7 @@ fi
 if [ "${GYMPRECICE_SKIP_STACK:-0}" != "1" ]; then
   STACK_START=$SECONDS
   INSTALL_LOG="$SCRATCH/install.log"
-  if ! .venv/bin/gymprecice install all ${INSTALL_SKIP[@]+"${INSTALL_SKIP[@]}"} | tee "$INSTALL_LOG"; then
+  if ! .venv/bin/gymprecice install all --at-once 2 ${INSTALL_SKIP[@]+"${INSTALL_SKIP[@]}"} | tee "$INSTALL_LOG"; then
     echo "setup: part of the real stack did not build (see above); the tests that need it" \
       "will skip, or fail under GYMPRECICE_REQUIRE_REAL=1" >&2
   fi

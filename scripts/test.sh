@@ -7,9 +7,11 @@
 # 1. Debian packages and .venv; ruff; then the fast tier: every test that needs neither the
 #    real stack nor much time (the preCICE test double's, the docs', the library's logic).
 #    A failure there stops the run before the real stack is built.
-# 2. The real stack and .venv-rllib; RLlib's tests (in .venv-rllib); then the rest: the
+# 2. The real stack and .venv-rllib; then the rest: the
 #    real-stack and slow tests, and every fast-tier test that skipped, run again now that
-#    the stack is there. The two tiers together are the whole suite (conftest.py).
+#    the stack is there. The two tiers together are the whole suite (conftest.py). The
+#    rest's tests that start a Ray cluster, then RLlib's, run in sessions of their own
+#    beside the others.
 #
 # The sessions run on $GYMPRECICE_TEST_WORKERS processes (default 2, pytest-xdist; 1: none),
 # each test to whichever worker is free (conftest.py's groups keep a Ray cluster's tests, and
@@ -48,12 +50,44 @@ GYMPRECICE_TIER=fast GYMPRECICE_DURATIONS="$OUT/durations-1-fast.json" \
   "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"}
 
 bash scripts/setup.sh stack
-# RLlib's tests run in their own environment (gymnasium 1.2.2), the rest on the newest.
+# Ray's tests: those that start a Ray cluster, then RLlib's in their own environment
+# (gymnasium 1.2.2, .venv-rllib), one session after the other: two clusters at once would
+# compete for the same ports.
+ray_sessions() {
+  local failed=0
+  GYMPRECICE_TIER=ray GYMPRECICE_DURATIONS="$OUT/durations-4-ray.json" \
+    "${PYTEST[@]}" || failed=$?
+  if [ -x .venv-rllib/bin/python ]; then
+    GYMPRECICE_DURATIONS="$OUT/durations-2-rllib.json" \
+      .venv-rllib/bin/python -m pytest -q tests/test_rllib.py tests/test_rllib_multiagent.py ||
+      failed=$?
+  fi
+  return "$failed"
+}
 status=0
-if [ -x .venv-rllib/bin/python ]; then
-  GYMPRECICE_DURATIONS="$OUT/durations-2-rllib.json" \
-    .venv-rllib/bin/python -m pytest -q tests/test_rllib.py tests/test_rllib_multiagent.py || status=$?
+if [ "$WORKERS" != 1 ]; then
+  # Ray's sessions mostly wait (for nodes, heartbeats, restarted actors): they run beside
+  # the rest's other tests, which have the workers. Their output is shown once they end.
+  ray_sessions >"$OUT/ray-sessions.log" 2>&1 &
+  ray_pid=$!
+  # they never outlive this script: stopped with it, or when it ends early
+  stop_ray_sessions() {
+    pkill -TERM -P "$ray_pid" 2>/dev/null || true # the session's pytest, then the shell
+    kill "$ray_pid" 2>/dev/null || true
+  }
+  trap stop_ray_sessions EXIT
+  trap 'exit 143' TERM
+  trap 'exit 130' INT
+  GYMPRECICE_TIER=local GYMPRECICE_DURATIONS="$OUT/durations-3-rest.json" \
+    "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"} || status=$?
+  ray_status=0
+  wait "$ray_pid" || ray_status=$?
+  echo "== Ray's tests and RLlib's (sessions of their own, beside the rest's others) =="
+  cat "$OUT/ray-sessions.log"
+  if [ "$ray_status" != 0 ]; then status=$ray_status; fi
+else
+  ray_sessions || status=$?
+  GYMPRECICE_TIER=local GYMPRECICE_DURATIONS="$OUT/durations-3-rest.json" \
+    "${PYTEST[@]}" || status=$?
 fi
-GYMPRECICE_TIER=rest GYMPRECICE_DURATIONS="$OUT/durations-3-rest.json" \
-  "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"} || status=$?
 exit "$status"

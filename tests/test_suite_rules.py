@@ -37,6 +37,13 @@ def test_plain():
 def test_needs_the_stack():
     if not os.path.exists("stack-built"):
         pytest.skip("the stack is not built yet")
+
+@pytest.fixture
+def ray_cluster():
+    return "a cluster"
+
+def test_on_a_cluster(ray_cluster):
+    pass
 '''
 
 NO_COST = '''
@@ -103,21 +110,50 @@ def test_the_fast_tier_and_the_rest_are_the_whole_suite(tmp_path: Path) -> None:
         GYMPRECICE_TIER_SKIPPED=str(skipped),
         GYMPRECICE_DURATIONS=str(tmp_path / "out" / "rest.json"),
     )
-    assert rest.returncode == 0 and "3 passed" in rest.stdout, rest.stdout
+    assert rest.returncode == 0 and "4 passed" in rest.stdout, rest.stdout
     assert _names(tmp_path / "out" / "rest.json") == [
         "test_needs_the_stack",  # skipped in the fast tier, run again
+        "test_on_a_cluster",
         "test_real",
         "test_slow",
     ]
     data = json.loads((tmp_path / "out" / "rest.json").read_text())
-    assert data["tier"] == "rest" and data["wall_s"] > 0
+    assert data["tier"] == "rest" and data["wall_s"] > 0 and data["started_at"] > 0
     assert all(t["seconds"] >= 0 and t["cpu_s"] >= 0 for t in data["tests"])
+
+    # the rest's two parts, which scripts/test.sh runs side by side, are the rest
+    parts = {}
+    for part in ("ray", "local"):
+        run = _pytest(
+            tmp_path,
+            SAMPLE,
+            GYMPRECICE_TIER=part,
+            GYMPRECICE_TIER_SKIPPED=str(skipped),
+            GYMPRECICE_DURATIONS=str(tmp_path / "out" / f"{part}.json"),
+        )
+        assert run.returncode == 0, run.stdout
+        parts[part] = _names(tmp_path / "out" / f"{part}.json")
+    assert parts["ray"] == ["test_on_a_cluster"]
+    assert parts["local"] == ["test_needs_the_stack", "test_real", "test_slow"]
 
 
 def test_an_unknown_tier_is_refused(tmp_path: Path) -> None:
     run = _pytest(tmp_path, SAMPLE, GYMPRECICE_TIER="slowest")
     assert run.returncode != 0
     assert "GYMPRECICE_TIER='slowest': use fast, rest" in run.stdout + run.stderr
+
+
+def test_sessions_side_by_side_count_once_in_the_suite_s_time() -> None:
+    sessions = [
+        {**_session("fast", 100.0, {"t.py::quick": 1.0}), "started_at": 0.0},
+        {**_session("local", 300.0, {"t.py::solver": 250.0}), "started_at": 150.0},
+        {**_session("ray", 200.0, {"t.py::cluster": 190.0}), "started_at": 150.0},
+    ]
+    assert suite_report.suite_wall(sessions) == 400.0  # 100, a pause of 50, then 300
+    text, inside = suite_report.report(sessions, budget=450.0)
+    assert inside and "6 min 40 s (budget 7 min 30 s) (10 min 00 s of sessions" in text
+    del sessions[0]["started_at"]  # an older file: taken as one after another
+    assert suite_report.suite_wall(sessions) == 600.0
 
 
 def test_a_real_test_that_does_not_state_its_cost_fails(tmp_path: Path) -> None:
