@@ -7,9 +7,10 @@ The variables below are what ``scripts/test.sh`` and CI set (docs/contributing/t
   time (run before the stack is built, so that a broken change fails in minutes);
   ``GYMPRECICE_TIER=rest`` runs the others, and again every test that skipped in the fast
   tier (listed in the file ``GYMPRECICE_TIER_SKIPPED``): together the two are the whole suite.
-  The rest splits in two that run side by side: ``GYMPRECICE_TIER=ray``, the tests that
-  start a Ray cluster (they mostly wait: for nodes, heartbeats, actors restarted), and
-  ``GYMPRECICE_TIER=local``, all the others.
+  The rest splits in two that run side by side: ``GYMPRECICE_TIER=waiting``, the tests
+  that mostly wait (those that start a Ray cluster, for nodes, heartbeats and restarted
+  actors; those marked ``waits``, for timeouts and signals), and ``GYMPRECICE_TIER=local``,
+  all the others.
 * ``GYMPRECICE_DURATIONS=<file>``: the session's wall-clock and every test's time (set-up,
   call and tear-down; wall and CPU seconds) are written there as JSON, slowest first, for
   ``scripts/suite_report.py``'s budget check.
@@ -37,7 +38,7 @@ import pytest
 #: proves nothing and hides a broken set-up.
 REQUIRE_REAL_ENV = "GYMPRECICE_REQUIRE_REAL"
 REAL_MARKERS = ("precice", "openfoam", "dealii", "fenics")
-#: ``fast`` or ``rest`` (or the rest's two parts, ``ray`` and ``local``): which tier of the
+#: ``fast`` or ``rest`` (or the rest's two parts, ``waiting`` and ``local``): which tier of the
 #: suite this session runs (unset: all of it).
 TIER_ENV = "GYMPRECICE_TIER"
 #: The file the fast tier lists its skipped tests in, and the rest tier runs them from.
@@ -169,6 +170,12 @@ def in_fast_tier(item: pytest.Item) -> bool:
     return xdist_group(item) != RAY_GROUP
 
 
+def mostly_waits(item: pytest.Item) -> bool:
+    """A test of the rest that mostly waits, run beside the others (``scripts/test.sh``):
+    one that starts a Ray cluster, or one marked ``waits``."""
+    return xdist_group(item) == RAY_GROUP or item.get_closest_marker("waits") is not None
+
+
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     _select_tier(config, items)
@@ -179,8 +186,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         partial.replace(_settings[GROUPS_KEY])
 
 
-#: The values of ``GYMPRECICE_TIER``: ``rest`` is ``ray`` and ``local`` together.
-TIERS = ("fast", "rest", "ray", "local")
+#: The values of ``GYMPRECICE_TIER``: ``rest`` is ``waiting`` and ``local`` together.
+TIERS = ("fast", "rest", "waiting", "local")
 
 
 def _select_tier(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -189,7 +196,8 @@ def _select_tier(config: pytest.Config, items: list[pytest.Item]) -> None:
         return
     if tier not in TIERS:
         raise pytest.UsageError(
-            f"{TIER_ENV}={tier!r}: use fast, rest (or its parts ray and local), or leave it unset"
+            f"{TIER_ENV}={tier!r}: use fast, rest (or its parts waiting and local), or leave it "
+            "unset"
         )
     again: set[str] = set()
     listed = _settings.get(TIER_SKIPPED_ENV)
@@ -199,8 +207,8 @@ def _select_tier(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         fast = in_fast_tier(item)
         keep = fast if tier == "fast" else (not fast or item.nodeid in again)
-        if keep and tier in ("ray", "local"):
-            keep = (xdist_group(item) == RAY_GROUP) == (tier == "ray")
+        if keep and tier in ("waiting", "local"):
+            keep = mostly_waits(item) == (tier == "waiting")
         (kept if keep else deselected).append(item)
     if deselected:
         config.hook.pytest_deselected(items=deselected)

@@ -10,8 +10,8 @@
 # 2. The real stack and .venv-rllib; then the rest: the
 #    real-stack and slow tests, and every fast-tier test that skipped, run again now that
 #    the stack is there. The two tiers together are the whole suite (conftest.py). The
-#    rest's tests that start a Ray cluster, then RLlib's, run in sessions of their own
-#    beside the others.
+#    rest's tests that mostly wait (a Ray cluster's, those marked `waits`), then RLlib's,
+#    run in sessions of their own beside the others.
 #
 # The sessions run on $GYMPRECICE_TEST_WORKERS processes (default 2, pytest-xdist; 1: none),
 # each test to whichever worker is free (conftest.py's groups keep a Ray cluster's tests, and
@@ -50,12 +50,13 @@ GYMPRECICE_TIER=fast GYMPRECICE_DURATIONS="$OUT/durations-1-fast.json" \
   "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"}
 
 bash scripts/setup.sh stack
-# Ray's tests: those that start a Ray cluster, then RLlib's in their own environment
-# (gymnasium 1.2.2, .venv-rllib), one session after the other: two clusters at once would
-# compete for the same ports.
-ray_sessions() {
+# The rest's tests that mostly wait: those that start a Ray cluster (for nodes, heartbeats,
+# restarted actors) and those marked `waits` (for timeouts and signals), one after another,
+# then RLlib's in their own environment (gymnasium 1.2.2, .venv-rllib): two Ray clusters at
+# once would compete for the same ports.
+waiting_sessions() {
   local failed=0
-  GYMPRECICE_TIER=ray GYMPRECICE_DURATIONS="$OUT/durations-4-ray.json" \
+  GYMPRECICE_TIER=waiting GYMPRECICE_DURATIONS="$OUT/durations-4-waiting.json" \
     "${PYTEST[@]}" || failed=$?
   if [ -x .venv-rllib/bin/python ]; then
     GYMPRECICE_DURATIONS="$OUT/durations-2-rllib.json" \
@@ -66,27 +67,27 @@ ray_sessions() {
 }
 status=0
 if [ "$WORKERS" != 1 ]; then
-  # Ray's sessions mostly wait (for nodes, heartbeats, restarted actors): they run beside
-  # the rest's other tests, which have the workers. Their output is shown once they end.
-  ray_sessions >"$OUT/ray-sessions.log" 2>&1 &
-  ray_pid=$!
+  # They run beside the rest's other tests, which have the workers; their output is shown
+  # once they end.
+  waiting_sessions >"$OUT/waiting-sessions.log" 2>&1 &
+  waiting_pid=$!
   # they never outlive this script: stopped with it, or when it ends early
-  stop_ray_sessions() {
-    pkill -TERM -P "$ray_pid" 2>/dev/null || true # the session's pytest, then the shell
-    kill "$ray_pid" 2>/dev/null || true
+  stop_waiting_sessions() {
+    pkill -TERM -P "$waiting_pid" 2>/dev/null || true # the session's pytest, then the shell
+    kill "$waiting_pid" 2>/dev/null || true
   }
-  trap stop_ray_sessions EXIT
+  trap stop_waiting_sessions EXIT
   trap 'exit 143' TERM
   trap 'exit 130' INT
   GYMPRECICE_TIER=local GYMPRECICE_DURATIONS="$OUT/durations-3-rest.json" \
     "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"} || status=$?
-  ray_status=0
-  wait "$ray_pid" || ray_status=$?
-  echo "== Ray's tests and RLlib's (sessions of their own, beside the rest's others) =="
-  cat "$OUT/ray-sessions.log"
-  if [ "$ray_status" != 0 ]; then status=$ray_status; fi
+  waiting_status=0
+  wait "$waiting_pid" || waiting_status=$?
+  echo "== the rest's tests that mostly wait, then RLlib's (sessions beside the others) =="
+  cat "$OUT/waiting-sessions.log"
+  if [ "$waiting_status" != 0 ]; then status=$waiting_status; fi
 else
-  ray_sessions || status=$?
+  waiting_sessions || status=$?
   GYMPRECICE_TIER=local GYMPRECICE_DURATIONS="$OUT/durations-3-rest.json" \
     "${PYTEST[@]}" || status=$?
 fi

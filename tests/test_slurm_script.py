@@ -208,6 +208,7 @@ def _preempted_then_requeued(tmp_path: Path, batch_only: bool) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.waits
 @pytest.mark.timeout(900)
 def test_a_job_signalled_before_its_time_limit_saves_requeues_and_resumes(tmp_path):
     """``--signal=B:TERM@60``: SIGTERM to the batch script alone, which passes it on,
@@ -219,6 +220,7 @@ def test_a_job_signalled_before_its_time_limit_saves_requeues_and_resumes(tmp_pa
 
 
 @pytest.mark.slow
+@pytest.mark.waits
 @pytest.mark.timeout(900)
 def test_a_preempted_job_saves_and_resumes(tmp_path):
     """A preemption: SIGTERM to every process of the job at once, the training's from the

@@ -42,7 +42,7 @@ from gymprecice.testing.chaos import (
 )
 from gymprecice.vector import ResilientVectorEnv
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.waits]  # bounded by timeouts, not CPU
 
 N_ENVS = 4
 EPISODES = 100

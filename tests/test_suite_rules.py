@@ -44,6 +44,11 @@ def ray_cluster():
 
 def test_on_a_cluster(ray_cluster):
     pass
+
+@pytest.mark.slow
+@pytest.mark.waits
+def test_waiting():
+    pass
 '''
 
 NO_COST = '''
@@ -71,7 +76,7 @@ def _pytest(
     shutil.copy(ROOT / "conftest.py", tmp_path / "conftest.py")
     (tmp_path / "test_sample.py").write_text(source)
     (tmp_path / "pytest.ini").write_text(
-        "[pytest]\nmarkers =\n    precice: real preCICE\n    openfoam: OpenFOAM\n    slow: slow\n"
+        "[pytest]\nmarkers =\n    precice: real preCICE\n    openfoam: OpenFOAM\n    slow: slow\n    waits: waits\n"
     )
     clean = {k: v for k, v in os.environ.items() if not k.startswith("GYMPRECICE_")}
     plugins = list(args) or ["-p", "no:xdist"]
@@ -110,12 +115,13 @@ def test_the_fast_tier_and_the_rest_are_the_whole_suite(tmp_path: Path) -> None:
         GYMPRECICE_TIER_SKIPPED=str(skipped),
         GYMPRECICE_DURATIONS=str(tmp_path / "out" / "rest.json"),
     )
-    assert rest.returncode == 0 and "4 passed" in rest.stdout, rest.stdout
+    assert rest.returncode == 0 and "5 passed" in rest.stdout, rest.stdout
     assert _names(tmp_path / "out" / "rest.json") == [
         "test_needs_the_stack",  # skipped in the fast tier, run again
         "test_on_a_cluster",
         "test_real",
         "test_slow",
+        "test_waiting",
     ]
     data = json.loads((tmp_path / "out" / "rest.json").read_text())
     assert data["tier"] == "rest" and data["wall_s"] > 0 and data["started_at"] > 0
@@ -123,7 +129,7 @@ def test_the_fast_tier_and_the_rest_are_the_whole_suite(tmp_path: Path) -> None:
 
     # the rest's two parts, which scripts/test.sh runs side by side, are the rest
     parts = {}
-    for part in ("ray", "local"):
+    for part in ("waiting", "local"):
         run = _pytest(
             tmp_path,
             SAMPLE,
@@ -133,7 +139,7 @@ def test_the_fast_tier_and_the_rest_are_the_whole_suite(tmp_path: Path) -> None:
         )
         assert run.returncode == 0, run.stdout
         parts[part] = _names(tmp_path / "out" / f"{part}.json")
-    assert parts["ray"] == ["test_on_a_cluster"]
+    assert parts["waiting"] == ["test_on_a_cluster", "test_waiting"]
     assert parts["local"] == ["test_needs_the_stack", "test_real", "test_slow"]
 
 
@@ -147,7 +153,7 @@ def test_sessions_side_by_side_count_once_in_the_suite_s_time() -> None:
     sessions = [
         {**_session("fast", 100.0, {"t.py::quick": 1.0}), "started_at": 0.0},
         {**_session("local", 300.0, {"t.py::solver": 250.0}), "started_at": 150.0},
-        {**_session("ray", 200.0, {"t.py::cluster": 190.0}), "started_at": 150.0},
+        {**_session("waiting", 200.0, {"t.py::cluster": 190.0}), "started_at": 150.0},
     ]
     assert suite_report.suite_wall(sessions) == 400.0  # 100, a pause of 50, then 300
     text, inside = suite_report.report(sessions, budget=450.0)

@@ -244,6 +244,7 @@ def test_openfoam_snapshot_library_keeps_a_validation_set_apart():
 
 
 @pytest.mark.slow
+@pytest.mark.waits
 def test_validation_runs_beside_a_normalised_overlapped_learner(tmp_path):
     """scripts/sac-overlap.yml's recipe on the test double (normalisation, updates overlapped
     with the solvers, two envs): the validation envs run side by side, one per
