@@ -6,7 +6,8 @@ Reads the durations files the sessions of ``scripts/test.sh`` wrote (``GYMPRECIC
 see conftest.py), prints the set-up's time split (when given), each session's wall-clock, the
 suite's (sessions that ran side by side count once) and its slowest tests; exits 1 when the
 suite's wall-clock is over ``--budget``, naming the slowest tests: whoever pushes the suite
-past its budget sees which tests to make cheaper. Standard library only: it runs before anything is installed too.
+past its budget sees which tests to make cheaper. Standard library only: it runs before
+anything is installed too.
 """
 
 from __future__ import annotations
