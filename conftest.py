@@ -103,6 +103,10 @@ def _session_prerun_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[
     directory = root / "gymprecice-cache"
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("GYMPRECICE_CACHE_DIR", str(directory))
+        # Stable-Baselines3 makes a folder in the system's temporary directory for every
+        # learn() whose logger it configures itself; the session's temporary folder takes
+        # them, so a test run leaves nothing in /tmp.
+        patch.setenv("SB3_LOGDIR", str(tmp_path_factory.getbasetemp() / "sb3-logs"))
         yield directory
 
 

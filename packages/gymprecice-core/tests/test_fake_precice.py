@@ -10,9 +10,11 @@ separate processes (``python -m gymprecice.testing.partner``), as in production.
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -1078,6 +1080,32 @@ def test_connector_waits_without_timeout_for_the_acceptor(
     )
     assert len(res) == 2
     assert b.wait(30) == 0, procs.err("b")
+
+
+def test_an_acceptor_killed_while_it_waits_leaves_nothing_in_the_temporary_directory(
+    tmp_path: Path, procs: Processes, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A participant killed before its partner came (a crashed or stopped run) leaves no
+    socket file behind: a day of such runs must not fill ``/tmp``."""
+    monkeypatch.chdir(tmp_path)
+    cfg = pair_config(tmp_path, max_time=0.02)
+    temp = Path(tempfile.mkdtemp(prefix="fp-", dir="/tmp"))  # short enough for a socket file
+    try:
+        a = procs.start(
+            partner_command(cfg, "A", flow="gymprecice.testing.flows:NullFlow"),
+            "a",
+            env={"TMPDIR": str(temp)},
+        )
+        address = tmp_path / "exchange" / "precice-run" / "A-B" / "fake-precice.address"
+        deadline = time.monotonic() + 30
+        while not address.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert address.exists(), procs.err("a")
+        os.killpg(a.pid, signal.SIGKILL)
+        a.wait(10)
+        assert list(temp.iterdir()) == []
+    finally:
+        shutil.rmtree(temp, ignore_errors=True)
 
 
 def test_real_precice_acceptor_is_detected(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
+import shutil
 import socket
 import struct
+import sys
 import tempfile
+import uuid
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -103,3 +107,54 @@ def short_socket_dir() -> Path:
     if len(base) > 60:
         base = "/tmp"
     return Path(tempfile.mkdtemp(prefix="fprc-", dir=base))
+
+
+#: how an abstract socket's address is written in an address file (as ``ss`` shows it)
+ABSTRACT_PREFIX = "@"
+
+
+class Listener:
+    """A listening ``AF_UNIX`` socket and the address a partner connects to.
+
+    On Linux the socket lives in the abstract namespace: it has no file, so a participant
+    killed while it waits for its partner leaves nothing behind in the temporary directory.
+    Elsewhere it is a file in a private directory, removed when the listener closes.
+    """
+
+    def __init__(self) -> None:
+        self.server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self._dir: Path | None = None
+        if sys.platform.startswith("linux"):
+            name = f"gymprecice-fake-precice-{os.getpid()}-{uuid.uuid4().hex}"
+            self.server.bind("\0" + name)
+            self.address = ABSTRACT_PREFIX + name
+        else:
+            self._dir = short_socket_dir()
+            self.address = str(self._dir / "s")
+            self.server.bind(self.address)
+        self.server.listen(1)
+
+    def accept(self) -> socket.socket:
+        """The partner's connection; the listener is closed once it has come."""
+        conn, _ = self.server.accept()
+        self.close()
+        return conn
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self.server.close()
+        if self._dir is not None:
+            shutil.rmtree(self._dir, ignore_errors=True)
+            self._dir = None
+
+
+def connect_to(address: str) -> socket.socket:
+    """A socket connected to a :class:`Listener`'s ``address`` (raises ``OSError``)."""
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    target = "\0" + address[1:] if address.startswith(ABSTRACT_PREFIX) else address
+    try:
+        sock.connect(target)
+    except OSError:
+        sock.close()
+        raise
+    return sock

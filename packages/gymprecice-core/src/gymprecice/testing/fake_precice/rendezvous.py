@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from gymprecice.plugin.precice_xml import PreciceConfig
-from gymprecice.testing.fake_precice.channel import Channel, short_socket_dir
+from gymprecice.testing.fake_precice.channel import Channel, Listener, connect_to
 from gymprecice.testing.fake_precice.coupling import Coupling
 from gymprecice.testing.fake_precice.errors import PreciceError
 from gymprecice.testing.fake_precice.mesh import Mesh
@@ -60,56 +60,54 @@ class Rendezvous:
         needed.discard(self.name)
         for partner in sorted(needed - partners):
             coupling.channel(partner)  # raises with the m2n advice
-        listeners: list[tuple[str, str, Path, socket.socket, Path]] = []
-        for acceptor, connector, directory in links:
-            if acceptor != self.name:
-                continue
-            link_dir = Path(directory) / "precice-run" / f"{acceptor}-{connector}"
-            address = link_dir / ADDRESS_FILE
-            if address.exists():
-                raise PreciceError(
-                    "Unable to establish connection as a connection file already exists at "
-                    f'"{address}". This is likely a leftover of a previous crash or stop during '
-                    'communication build-up. Please remove the "precice-run" directory and '
-                    "restart the simulation."
+        listeners: list[tuple[str, Path, Listener]] = []
+        try:
+            for acceptor, connector, directory in links:
+                if acceptor != self.name:
+                    continue
+                link_dir = Path(directory) / "precice-run" / f"{acceptor}-{connector}"
+                address = link_dir / ADDRESS_FILE
+                if address.exists():
+                    raise PreciceError(
+                        "Unable to establish connection as a connection file already exists at "
+                        f'"{address}". This is likely a leftover of a previous crash or stop during '
+                        'communication build-up. Please remove the "precice-run" directory and '
+                        "restart the simulation."
+                    )
+                listener = Listener()
+                link_dir.mkdir(parents=True, exist_ok=True)
+                tmp = link_dir / (ADDRESS_FILE + "~")
+                tmp.write_text(
+                    f"{listener.address}\nAcceptor: {acceptor}, Requester: {connector}\n"
                 )
-            sock_dir = short_socket_dir()
-            sock_path = sock_dir / "s"
-            server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-            server.bind(str(sock_path))
-            server.listen(1)
-            link_dir.mkdir(parents=True, exist_ok=True)
-            tmp = link_dir / (ADDRESS_FILE + "~")
-            tmp.write_text(f"{sock_path}\nAcceptor: {acceptor}, Requester: {connector}\n")
-            os.replace(tmp, address)
-            listeners.append((connector, acceptor, address, server, sock_dir))
-        hello = {"participant": self.name, "version": PRECICE_VERSION, "hash": self.config_hash}
-        pending: list[Channel] = []
-        for acceptor, connector, directory in links:
-            if connector != self.name:
-                continue
-            link_dir = Path(directory) / "precice-run" / f"{acceptor}-{connector}"
-            sock = self._request(link_dir, acceptor)
-            ch = Channel(sock, self.name, acceptor)
-            ch.send("hello", hello)
-            pending.append(ch)
-        for connector, _acceptor, address, server, sock_dir in listeners:
-            conn, _ = server.accept()
-            server.close()
-            with contextlib.suppress(OSError):
-                address.unlink()
-            with contextlib.suppress(OSError):
-                (sock_dir / "s").unlink()
-                sock_dir.rmdir()
-            ch = Channel(conn, self.name, connector)
-            remote, _ = ch.recv("hello")
-            self._check_hello(remote, connector)
-            ch.send("hello", hello)
-            coupling.channels[connector] = ch
-        for ch in pending:
-            remote, _ = ch.recv("hello")
-            self._check_hello(remote, ch.remote)
-            coupling.channels[ch.remote] = ch
+                os.replace(tmp, address)
+                listeners.append((connector, address, listener))
+            hello = {"participant": self.name, "version": PRECICE_VERSION, "hash": self.config_hash}
+            pending: list[Channel] = []
+            for acceptor, connector, directory in links:
+                if connector != self.name:
+                    continue
+                link_dir = Path(directory) / "precice-run" / f"{acceptor}-{connector}"
+                sock = self._request(link_dir, acceptor)
+                ch = Channel(sock, self.name, acceptor)
+                ch.send("hello", hello)
+                pending.append(ch)
+            for connector, address, listener in listeners:
+                conn = listener.accept()
+                with contextlib.suppress(OSError):
+                    address.unlink()
+                ch = Channel(conn, self.name, connector)
+                remote, _ = ch.recv("hello")
+                self._check_hello(remote, connector)
+                ch.send("hello", hello)
+                coupling.channels[connector] = ch
+            for ch in pending:
+                remote, _ = ch.recv("hello")
+                self._check_hello(remote, ch.remote)
+                coupling.channels[ch.remote] = ch
+        finally:  # a listener nobody reached: closed (its file, if any, removed)
+            for _connector, _address, listener in listeners:
+                listener.close()
 
     def _request(self, link_dir: Path, acceptor: str) -> socket.socket:
         """Wait (forever, like preCICE) for the acceptor's address, then connect."""
@@ -130,14 +128,10 @@ class Rendezvous:
                 time.sleep(POLL_SECONDS)
                 continue
             path = text.splitlines()[0].strip() if text else ""
-            sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             try:
-                sock.connect(path)
+                return connect_to(path)
             except OSError:
-                sock.close()
                 time.sleep(POLL_SECONDS)
-                continue
-            return sock
 
     def _check_hello(self, remote: dict[str, str], expected: str) -> None:
         if remote.get("participant") != expected:
