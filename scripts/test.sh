@@ -6,8 +6,10 @@
 #
 # 1. Debian packages and .venv; ruff; then the fast tier: every test that needs neither the
 #    real stack nor much time (the preCICE test double's, the docs', the library's logic).
-#    A failure there stops the run before the real stack is built.
-# 2. The real stack and .venv-rllib; then the rest: the
+#    The real stack and .venv-rllib build beside it at the lowest priority (`nice -n 19`):
+#    they take only the CPU the fast tier leaves idle, and the run waits for them after it.
+#    A failure in the fast tier stops the build and the run.
+# 2. The rest: the
 #    real-stack and slow tests, and every fast-tier test that skipped, run again now that
 #    the stack is there. The two tiers together are the whole suite (conftest.py). The
 #    rest's tests that mostly wait (a Ray cluster's, those marked `waits`), then RLlib's,
@@ -44,12 +46,58 @@ mkdir -p "$OUT"
 rm -f "$OUT"/durations-*.json "$OUT/skipped-in-fast-tier.txt"
 export GYMPRECICE_TIER_SKIPPED="$OUT/skipped-in-fast-tier.txt"
 
+# Background jobs of this script (the stack's build, the waiting sessions) never outlive
+# it: on any exit, each is stopped with every process under it.
+# (Each tree is frozen before it is told to stop, so that no parent sees a child end and
+# starts another in its place.)
+BACKGROUND=()
+tree() {
+  local child
+  echo "$1"
+  for child in $(pgrep -P "$1" 2>/dev/null); do tree "$child"; done
+}
+stop_background() {
+  local pid pids=()
+  for pid in ${BACKGROUND[@]+"${BACKGROUND[@]}"}; do
+    mapfile -t -O "${#pids[@]}" pids < <(tree "$pid")
+  done
+  [ ${#pids[@]} -gt 0 ] || return 0
+  kill -STOP "${pids[@]}" 2>/dev/null || true
+  kill -TERM "${pids[@]}" 2>/dev/null || true
+  kill -CONT "${pids[@]}" 2>/dev/null || true
+}
+trap stop_background EXIT
+trap 'exit 143' TERM
+trap 'exit 130' INT
+# A test session runs as a job this script waits for: bash runs a trap only between two
+# commands, so a TERM would otherwise wait for the whole session to end.
+session() {
+  local pid status=0
+  "$@" &
+  pid=$!
+  BACKGROUND+=("$pid")
+  wait "$pid" || status=$?
+  unset 'BACKGROUND[${#BACKGROUND[@]}-1]'
+  return "$status"
+}
+
 bash scripts/setup.sh base
 lint
+# The stack builds beside the fast tier at the lowest priority: the fast tier keeps its
+# cores (many of its tests wait on a partner or a timeout), the compilers take what it
+# leaves idle. The fast tier's tests need nothing of the stack.
+STACK_LOG="$OUT/setup-stack.log"
+nice -n 19 bash scripts/setup.sh stack >"$STACK_LOG" 2>&1 &
+stack_pid=$!
+BACKGROUND+=("$stack_pid")
 GYMPRECICE_TIER=fast GYMPRECICE_DURATIONS="$OUT/durations-1-fast.json" \
-  "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"}
-
-bash scripts/setup.sh stack
+  session "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"}
+stack_status=0
+wait "$stack_pid" || stack_status=$?
+BACKGROUND=()
+echo "== the real stack (scripts/setup.sh stack, built beside the fast tier) =="
+cat "$STACK_LOG"
+if [ "$stack_status" != 0 ]; then exit "$stack_status"; fi
 # The rest's tests that mostly wait: those that start a Ray cluster (for nodes, heartbeats,
 # restarted actors) and those marked `waits` (for timeouts and signals), one after another,
 # then RLlib's in their own environment (gymnasium 1.2.2, .venv-rllib): two Ray clusters at
@@ -71,24 +119,18 @@ if [ "$WORKERS" != 1 ]; then
   # once they end.
   waiting_sessions >"$OUT/waiting-sessions.log" 2>&1 &
   waiting_pid=$!
-  # they never outlive this script: stopped with it, or when it ends early
-  stop_waiting_sessions() {
-    pkill -TERM -P "$waiting_pid" 2>/dev/null || true # the session's pytest, then the shell
-    kill "$waiting_pid" 2>/dev/null || true
-  }
-  trap stop_waiting_sessions EXIT
-  trap 'exit 143' TERM
-  trap 'exit 130' INT
+  BACKGROUND+=("$waiting_pid")
   GYMPRECICE_TIER=local GYMPRECICE_DURATIONS="$OUT/durations-3-rest.json" \
-    "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"} || status=$?
+    session "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"} || status=$?
   waiting_status=0
   wait "$waiting_pid" || waiting_status=$?
+  BACKGROUND=()
   echo "== the rest's tests that mostly wait, then RLlib's (sessions beside the others) =="
   cat "$OUT/waiting-sessions.log"
   if [ "$waiting_status" != 0 ]; then status=$waiting_status; fi
 else
-  waiting_sessions || status=$?
+  session waiting_sessions || status=$?
   GYMPRECICE_TIER=local GYMPRECICE_DURATIONS="$OUT/durations-3-rest.json" \
-    "${PYTEST[@]}" || status=$?
+    session "${PYTEST[@]}" || status=$?
 fi
 exit "$status"
