@@ -8,6 +8,8 @@
 #   docs/assets/anim-*.mp4           each environment's short animation (the gallery): one
 #                                    held-out start under its shipped policy (uncontrolled
 #                                    where it ships none), a frame per action
+# FSI3's pictures need its library of starts where the env looks for it: build it first
+# (python -m gymprecice_tutorials.turek_hron.build_starts; docs/tutorials/turek-hron-fsi3.md).
 # Usage: bash scripts/make_docs_pictures.sh [wake|snapshots|sketches|animations|all]
 # (default: all)
 # EPISODE_TIME (default 2) sets the wake video's simulated seconds; DOUBLE=1 makes the
@@ -59,6 +61,7 @@ rotating-cylinder-fast rotating-cylinder
 perpendicular-flap-fast perpendicular-flap
 heated-plate-fast heated-plate
 two-flaps-fast two-flaps
+turek-hron-fsi3 turek-hron-fsi3
 EOF
 fi
 
@@ -78,5 +81,6 @@ rotating-cylinder-fast rotating-cylinder 2 evaluate
 perpendicular-flap-fast perpendicular-flap - evaluate
 heated-plate-fast heated-plate - evaluate
 two-flaps-fast two-flaps 3 evaluate
+turek-hron-fsi3 turek-hron-fsi3 - baseline
 EOF
 fi

@@ -3,8 +3,8 @@
 Each tutorial environment the tutorials' plugin registers appears in exactly one of the
 page's ``env_table(...)`` calls, which write its facts from its registration when the site
 is built (scripts/docs_macros.py); each task has an inline animation and a still that
-scripts/make_docs_pictures.sh makes, and a link to its tutorial page; the page is in the
-site's navigation. The facts a table shows are those of the registered env: its lab card
+scripts/make_docs_pictures.sh makes (a task of :data:`NOT_ANIMATED_YET`, its case's
+sketch instead), and a link to its tutorial page; the page is in the site's navigation. The facts a table shows are those of the registered env: its lab card
 and the spaces of an env made without starting a solver.
 """
 
@@ -32,6 +32,16 @@ def _load_macros():
 
 
 macros = _load_macros()
+
+
+#: tasks whose animation cannot be made yet, and why: their section shows the case's
+#: sketch, which scripts/make_docs_pictures.sh makes, until the script's animation line
+#: for them has run (then drop the task from here)
+NOT_ANIMATED_YET = {
+    "Turek and Hron's FSI3 (an elastic bar behind a cylinder)": (
+        "its episodes start from a library of starts that one long uncontrolled run builds"
+    ),
+}
 
 
 def _sections() -> dict[str, str]:
@@ -67,13 +77,23 @@ def test_each_task_has_its_picture_its_tutorial_and_its_cost(heading: str) -> No
     videos = re.findall(
         r'<video src="assets/anim-([\w-]+)\.mp4" poster="(assets/[\w.-]+\.png)"', section
     )
-    assert len(videos) == 1, f"{heading}: no animation (or more than one)"
-    ((name, poster),) = videos
-    assert (ROOT / "docs" / "assets" / f"anim-{name}.mp4").is_file(), name
-    assert re.search(rf"^\S+ {name} \S+ (evaluate|baseline)$", script, re.M), (
-        f"anim-{name}.mp4: scripts/make_docs_pictures.sh does not make it"
-    )
-    pictures = [*re.findall(r"\]\((assets/[\w.-]+\.png)\)", section), poster]
+    if heading in NOT_ANIMATED_YET:
+        assert not videos, f"{heading}: animated now: drop it from NOT_ANIMATED_YET"
+        (name,) = re.findall(r"\]\(assets/sketch-([\w-]+)\.png\)", section)
+        assert (ROOT / "docs" / "assets" / f"sketch-{name}.png").is_file(), name
+        assert re.search(rf"^[\w-]+ {name}$", script, re.M), f"sketch-{name}.png: not made"
+        assert re.search(rf"^\S+ {name} \S+ (evaluate|baseline)$", script, re.M), (
+            f"anim-{name}.mp4: scripts/make_docs_pictures.sh does not make it"
+        )
+        pictures = []
+    else:
+        assert len(videos) == 1, f"{heading}: no animation (or more than one)"
+        ((name, poster),) = videos
+        assert (ROOT / "docs" / "assets" / f"anim-{name}.mp4").is_file(), name
+        assert re.search(rf"^\S+ {name} \S+ (evaluate|baseline)$", script, re.M), (
+            f"anim-{name}.mp4: scripts/make_docs_pictures.sh does not make it"
+        )
+        pictures = [*re.findall(r"\]\((assets/[\w.-]+\.png)\)", section), poster]
     for picture in pictures:
         assert (ROOT / "docs" / picture).is_file(), picture
         assert f"docs/{picture}" in script or re.search(

@@ -70,16 +70,22 @@ def test_an_episode_from_a_saved_start_repeats_the_uncontrolled_run_it_was_saved
 ) -> None:
     """The FEniCS bar (tests/test_fsi3_solid_real.py) as the coupled solid: a smoke-size
     library of starts is built by the uncontrolled run through the env (20 windows, in
-    two segments: the second starts from the first's checkpoint), then an episode from
-    its validation start, jets shut, must repeat that run: the fluid restarts from its
-    time directory on the deformed mesh, the bar from its saved state, and each hands
-    the other its state at the first window. Cost: about 1.5 min."""
+    two segments: the second starts from the first's checkpoint), then an episode of the
+    registered control env (``gymprecice/TurekHronFSI3-v0``) from its validation start,
+    made ``uncontrolled`` and asked for the jets' full flow, must repeat that run: the
+    fluid restarts from its time directory on the deformed mesh, the bar from its saved
+    state, and each hands the other its state at the first window; every step's drag
+    (read on the fluid's clock, which begins at the start's time) and reward are the
+    run's, and the env renders the flow and the bent bar (the bar writes its field on
+    the coupling's clock). Cost: about 1.5 min."""
+    import gymnasium as gym
     import numpy as np
 
+    import gymprecice  # noqa: F401  (registers the ids)
     from gymprecice_fenics import solver_env
     from gymprecice_tutorials.turek_hron import starts
-    from gymprecice_tutorials.turek_hron.environment import TurekHronEnv
-    from gymprecice_tutorials.turek_hron.series import recorded_series, run_to_end
+    from gymprecice_tutorials.turek_hron.environment import reward_terms
+    from gymprecice_tutorials.turek_hron.series import recorded_series
 
     missing = missing_coupled_stack("pimpleFoam", "blockMesh")
     report = solver_env.probe()
@@ -94,20 +100,34 @@ def test_an_episode_from_a_saved_start_repeats_the_uncontrolled_run_it_was_saved
     assert not (tmp_path / ".starts-run").exists()  # the build's run is removed
     uncontrolled = dict(np.load(library.path / starts.UNCONTROLLED))
 
-    env = TurekHronEnv(
+    env = gym.make(
+        "gymprecice/TurekHronFSI3-v0",
         starts=library.path,
         time_step=0.002,
         episode_time=0.01,
         action_time=0.002,
+        uncontrolled=True,
         run_root=tmp_path / "runs",
+        render_mode="rgb_array",
+        disable_env_checker=True,
     )
+    steps = []
     try:
         obs, info = env.reset(seed=0, options={"split": "validation", "start": 0})
         assert info["start"] == {"split": "validation", "index": 0, "time": "0.03"}
-        run_to_end(env)
-        episode = recorded_series(env, start_time=0.03)
+        first = env.render()
+        full = np.asarray(env.action_space.high, dtype=np.float32)
+        truncated = False
+        while not truncated:
+            *_, reward, terminated, truncated, step_info = env.step(full)
+            assert not terminated
+            steps.append((reward, step_info))
+        last = env.render()
+        episode = recorded_series(env.unwrapped, start_time=0.03)
     finally:
         env.close()
+    assert first.shape == last.shape and first.shape[2] == 3 and first.var() > 100.0
+    assert np.abs(last.astype(int) - first.astype(int)).sum() > 0
 
     def uncontrolled_at(name: str, times: np.ndarray) -> np.ndarray:
         return np.interp(times + 0.03, uncontrolled["time"], uncontrolled[name])
@@ -116,10 +136,19 @@ def test_an_episode_from_a_saved_start_repeats_the_uncontrolled_run_it_was_saved
     assert obs[0] == pytest.approx(uncontrolled_at("tip_dx", np.zeros(1))[0], rel=1e-3)
     assert abs(obs[0]) > 1e-7
     # five windows on, the restarted run is the uncontrolled one (ASCII time
-    # directories of 10 digits: close, not to the bit)
+    # directories of 10 digits: close, not to the bit), whatever the action asked
+    assert len(steps) == 5
     for name in ("tip_dx", "drag"):
         expected = uncontrolled_at(name, episode["time"][-1:])[0]
         assert episode[name][-1] == pytest.approx(expected, rel=1e-2), name
+    for k, (reward, step_info) in enumerate(steps):
+        assert step_info["action"] == [0.0]  # the jets shut
+        metrics = step_info["metrics"]
+        expected = uncontrolled_at("drag", np.array([0.002 * (k + 1)]))[0]
+        assert metrics["drag"] == pytest.approx(expected, rel=1e-2), k
+        swing, penalty = reward_terms(metrics["mean_abs_tip_dy"], metrics["drag"])
+        assert reward == pytest.approx(-(swing + penalty))
+        assert metrics["cost"] == pytest.approx(-reward)
 
 
 def _smoke_run(tmp_path, *options: str) -> str:

@@ -31,7 +31,9 @@ DOUBLES = {
     "gymprecice/HeatedPlateFast-v0": 0.5,
     "gymprecice/TwoFlapsFast-v0": 0.3,
 }
-WITHOUT_DOUBLE = {"gymprecice/PerpendicularFlap-v0"}
+#: tutorial envs with no test double: the flap's full case, and FSI3 (tests/test_fsi3_real.py
+#: renders it on the real solvers)
+WITHOUT_DOUBLE = {"gymprecice/PerpendicularFlap-v0", "gymprecice/TurekHronFSI3-v0"}
 
 
 def _make(env_id: str, tmp_path: Path) -> gym.Env:

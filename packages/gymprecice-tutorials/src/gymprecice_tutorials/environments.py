@@ -59,6 +59,9 @@ _FLAP_CHECKS = ("pyprecice", "openfoam", "deal.ii", "elasticity")
 #: a flap or plate made with ``solid="fenics"`` runs FEniCS instead of deal.II / OpenFOAM
 _FENICS_FLAP = {"solid=fenics": ("pyprecice", "openfoam", "fenics")}
 _FENICS_PLATE = {"solid=fenics": (*_ONE_RANK_CHECKS, "fenics")}
+#: FSI3's episodes from starts run the FEniCS bar (the deal.II program cannot restart)
+#: beside OpenFOAM's fluid, its mesh from blockMesh
+_FSI3_CHECKS = (*_ONE_RANK_CHECKS, "fenics")
 
 
 @functools.cache
@@ -67,6 +70,7 @@ def environments() -> tuple[tuple[str, str, EnvCard], ...]:
     from dataclasses import replace
 
     from gymprecice.plugin.card import EnvCard
+    from gymprecice_tutorials.turek_hron.reference import PUBLISHED
 
     floor = fast_cylinder_floor()
     # what every cylinder's card says alike: its force coefficients, the lift as the signal a
@@ -256,6 +260,30 @@ def environments() -> tuple[tuple[str, str, EnvCard], ...]:
                 solver_checks=_FLAP_CHECKS,
                 agents=("upstream", "downstream"),
                 policies=POLICIES,
+            ),
+        ),
+        (
+            # Episodes from a library of the swinging state, built once by a long
+            # uncontrolled run (turek_hron/build_starts.py); made without one, the env
+            # says where it looked and how to build it.
+            "gymprecice/TurekHronFSI3-v0",
+            "gymprecice_tutorials.turek_hron.environment:TurekHronControlEnv",
+            EnvCard(
+                name="turek-hron-fsi3",
+                description="Turek and Hron's FSI3 (OpenFOAM + FEniCS bar): two jets on the "
+                "cylinder damp the elastic bar's swing without raising the drag, 1 s "
+                "episodes from a library of the swinging state",
+                objective="cost",
+                metrics=("mean_abs_tip_dy", "drag"),
+                held_out_starts=True,
+                validation_starts=True,
+                uncontrolled={"uncontrolled": True},
+                policies=POLICIES,
+                episode_time=True,
+                # forcing at the bar's swing, the benchmark's frequency of the tip's dy
+                open_loop_frequency=PUBLISHED["tip_dy_frequency"].value,
+                action_unit="m³/s",
+                solver_checks=_FSI3_CHECKS,
             ),
         ),
     )

@@ -6,15 +6,20 @@ jets shut: the fluid writes its state every ``spacing`` seconds and keeps the la
 ``count`` (OpenFOAM's ``writeInterval`` and ``purgeWrite``), the FEniCS bar saves its
 state at the start times, and the states are gathered into a new library folder::
 
-    python -m gymprecice_tutorials.turek_hron.build_starts --out DIR \\
+    python -m gymprecice_tutorials.turek_hron.build_starts [--out DIR] \\
         [--resolution coarse] [--time-step 0.002] [--degree 2] \\
         [--first 6.0] [--count 12] [--spacing 0.02] [--checkpoint-every 1.0] [--smoke]
 
-The run takes most of an hour on 2 cores, so it goes in segments: every
+The run takes about 80 minutes on 2 cores (:data:`.starts.BUILD_COST`: three quarters
+of the coupled validation run's 8 s), so it goes in segments: every
 ``--checkpoint-every`` simulated seconds its state is kept as a one-start library in the
 run folder (``.<name>-run/checkpoints/``), and the next segment starts from it as an
 episode starts from a start. The same command, run again after an interruption, goes on
 from the newest checkpoint; the run folder is removed once the library is made.
+
+Without ``--out`` the library goes where the registered env ``gymprecice/TurekHronFSI3-v0``
+looks for it, :func:`.starts.default_starts`; an env given ``starts=DIR`` takes one from
+elsewhere.
 
 ``--smoke``: three starts at 0.02 to 0.04 s after a checkpoint at 0.01 s, under two
 minutes, that checks the mechanism (the inflow has barely begun: nothing swings yet).
@@ -40,6 +45,7 @@ from gymprecice_tutorials.turek_hron.starts import (
     INDEX,
     UNCONTROLLED,
     StartLibrary,
+    default_starts,
     load,
     split,
     start_times,
@@ -218,7 +224,12 @@ def build(
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", required=True, type=Path, help="the library's folder (new)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=default_starts(),
+        help="the library's folder, new (default: where the registered env looks for it)",
+    )
     parser.add_argument("--resolution", default="coarse", help="the fluid mesh (default coarse)")
     parser.add_argument("--time-step", type=float, default=0.002, help="time window (s)")
     parser.add_argument("--degree", type=int, default=2, help="the bar's polynomial degree")

@@ -21,22 +21,51 @@ acceleration: ``Bar.save``). The deal.II program cannot restart, so starts need
 The split follows the cylinders' snapshots (:func:`gymprecice_openfoam.case.split_snapshots`):
 every fourth start is held out (``reset(options={"split": "eval", "start": k})``), a
 quarter of the rest validates (``"validation"``), training draws from the others.
+
+The registered env (``gymprecice/TurekHronFSI3-v0``) and the build look for the library
+in one place per user unless told another, :func:`default_starts`:
+``$XDG_DATA_HOME/gymprecice/turek-hron-fsi3/starts`` (``~/.local/share/...`` without
+``XDG_DATA_HOME``), beside what ``gymprecice install`` builds.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["INDEX", "UNCONTROLLED", "StartLibrary", "load", "split", "start_times"]
+__all__ = [
+    "BUILD_COMMAND",
+    "BUILD_COST",
+    "INDEX",
+    "UNCONTROLLED",
+    "StartLibrary",
+    "default_starts",
+    "load",
+    "split",
+    "start_times",
+]
 
 #: the library's description, beside its states
 INDEX = "starts.json"
 #: the uncontrolled run's series from the first start on (``validate``'s signals), which
 #: an episode from a start without control should repeat
 UNCONTROLLED = "uncontrolled.npz"
+#: the command that builds a library (``--out DIR`` puts it elsewhere than the default)
+BUILD_COMMAND = "python -m gymprecice_tutorials.turek_hron.build_starts"
+#: what building the full library costs (the build's defaults: 6.22 s of the coupled run,
+#: about three quarters of the 8 s validation run with the FEniCS bar, docs/validation.md)
+BUILD_COST = "about 80 min on 2 cores"
+
+
+def default_starts() -> Path:
+    """Where the registered env looks for its library and the build puts it unless told
+    another: ``$XDG_DATA_HOME/gymprecice/turek-hron-fsi3/starts`` (``XDG_DATA_HOME``
+    defaults to ``~/.local/share``, as for :func:`gymprecice.tools.stack.stack_prefix`)."""
+    data = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(data).expanduser() / "gymprecice" / "turek-hron-fsi3" / "starts"
 
 
 @dataclass(frozen=True)
@@ -77,8 +106,7 @@ class StartLibrary:
         ):
             raise ValueError(
                 f"{self.path / INDEX}: these starts were saved from the case {saved}, not "
-                f"{wanted}; build a library for this case: python -m "
-                "gymprecice_tutorials.turek_hron.build_starts --out DIR "
+                f"{wanted}; build a library for this case: {BUILD_COMMAND} --out DIR "
                 f"--resolution {resolution} --time-step {time_step:g} --degree {degree}"
             )
 
@@ -94,7 +122,7 @@ def load(path: str | Path) -> StartLibrary:
     """The library at ``path``; a missing or incomplete one is refused, naming the fix."""
     root = Path(path).expanduser().resolve()
     index = root / INDEX
-    build_hint = f"build it: python -m gymprecice_tutorials.turek_hron.build_starts --out {root}"
+    build_hint = f"build it: {BUILD_COMMAND} --out {root}"
     try:
         data = json.loads(index.read_text())
     except FileNotFoundError:

@@ -22,11 +22,17 @@ the benchmark's 8 s).
 
 A state saved at time t is ``<save_dir>/state-<t>.npz`` (t to the microsecond); the
 last one, at the end of the coupling, is ``<save_dir>/state-end.npz``.
+
+When the env renders (``GYMPRECICE_FIELDS`` names ``displacement``), the displacement at
+the mesh vertices goes to ``gymprecice-fields/displacement.npz`` at the start and once
+per action (``GYMPRECICE_FIELD_INTERVAL``), on the coupling's clock (from 0 at the start,
+whatever time a saved state began at), as the gymprecice-fenics plugin reads it.
 """
 
 import json
 import os
 
+import numpy as np
 from bar import FSI3, Bar, VertexTraction, wetted
 from dolfin import AutoSubDomain
 from fenicsprecice import Adapter
@@ -37,6 +43,10 @@ with open("solid.json") as handle:
 LOAD = SETTINGS.get("load", "rbf")
 if LOAD not in ("rbf", "vertex"):
     raise SystemExit(f"solid.json: load must be 'rbf' or 'vertex', got {LOAD!r}")
+FIELDS = [name for name in os.environ.get("GYMPRECICE_FIELDS", "").split(",") if name]
+FIELD_INTERVAL = float(os.environ.get("GYMPRECICE_FIELD_INTERVAL") or 0.0)
+if set(FIELDS) - {"displacement"}:
+    raise SystemExit(f"solid.py writes the field displacement only; gymprecice asked for {FIELDS}")
 
 precice = Adapter(adapter_config_filename="precice-adapter-config.json")
 traction = None
@@ -48,7 +58,6 @@ def start_displacement(function_space):
     already deformed); without a start state the function space, and no initial data."""
     if not SETTINGS.get("start_state"):
         return function_space
-    import numpy as np
     from dolfin import Function
 
     displacement = Function(function_space)
@@ -93,6 +102,30 @@ def save(name):
     bar.save(os.path.join(save_dir, name))
 
 
+began = bar.time  # the coupling's clock starts at 0 here
+
+
+def write_displacement():
+    """``gymprecice-fields/displacement.npz`` for env.render(), replaced whole."""
+    mesh = bar.mesh
+    values = bar.u_n.compute_vertex_values(mesh).reshape(2, -1).T
+    os.makedirs("gymprecice-fields", exist_ok=True)
+    with open("gymprecice-fields/.displacement.npz", "wb") as out:
+        np.savez(
+            out,
+            time=np.array(bar.time - began),
+            points=mesh.coordinates(),
+            values=np.linalg.norm(values, axis=1),
+            displacement=values,
+            triangles=mesh.cells().astype(np.int64),
+            label=np.array("|d| [m]"),
+        )
+    os.replace("gymprecice-fields/.displacement.npz", "gymprecice-fields/displacement.npz")
+
+
+if FIELDS:
+    write_displacement()
+
 while precice.is_coupling_ongoing():
     if precice.requires_writing_checkpoint():
         precice.store_checkpoint(bar.state(), bar.time, 0)
@@ -108,6 +141,10 @@ while precice.is_coupling_ongoing():
         bar.advance(step)
         while save_dir and pending and bar.time >= pending[0] - step / 2:
             save(f"state-{pending.pop(0):.6f}.npz")
+        if FIELDS and FIELD_INTERVAL > 0:
+            frames = (bar.time - began) / FIELD_INTERVAL
+            if abs(frames - round(frames)) < 1e-6 * max(1.0, frames):
+                write_displacement()
 
 if save_dir:
     save("state-end.npz")
