@@ -6,10 +6,8 @@
 #
 # 1. Debian packages and .venv; ruff; then the fast tier: every test that needs neither the
 #    real stack nor much time (the preCICE test double's, the docs', the library's logic).
-#    The real stack and .venv-rllib build beside it at the lowest priority (`nice -n 19`):
-#    they take only the CPU the fast tier leaves idle, and the run waits for them after it.
-#    A failure in the fast tier stops the build and the run.
-# 2. The rest: the
+#    A failure there stops the run before the real stack is built.
+# 2. The real stack and .venv-rllib; then the rest: the
 #    real-stack and slow tests, and every fast-tier test that skipped, run again now that
 #    the stack is there. The two tiers together are the whole suite (conftest.py). The
 #    rest's tests that mostly wait (a Ray cluster's, those marked `waits`), then RLlib's,
@@ -46,10 +44,10 @@ mkdir -p "$OUT"
 rm -f "$OUT"/durations-*.json "$OUT/skipped-in-fast-tier.txt"
 export GYMPRECICE_TIER_SKIPPED="$OUT/skipped-in-fast-tier.txt"
 
-# Background jobs of this script (the stack's build, the waiting sessions) never outlive
-# it: on any exit, each is stopped with every process under it.
-# (Each tree is frozen before it is told to stop, so that no parent sees a child end and
-# starts another in its place.)
+# The test sessions never outlive this script: on any exit, each is stopped with every
+# process under it. Each tree is frozen before it is told to stop, so that no parent sees
+# a child end and starts another in its place; what is still there 10 s later (a Ray
+# driver's own SIGTERM handler can hang) is killed.
 BACKGROUND=()
 tree() {
   local child
@@ -57,7 +55,7 @@ tree() {
   for child in $(pgrep -P "$1" 2>/dev/null); do tree "$child"; done
 }
 stop_background() {
-  local pid pids=()
+  local pid pids=() left=()
   for pid in ${BACKGROUND[@]+"${BACKGROUND[@]}"}; do
     mapfile -t -O "${#pids[@]}" pids < <(tree "$pid")
   done
@@ -65,6 +63,15 @@ stop_background() {
   kill -STOP "${pids[@]}" 2>/dev/null || true
   kill -TERM "${pids[@]}" 2>/dev/null || true
   kill -CONT "${pids[@]}" 2>/dev/null || true
+  for _ in $(seq 20); do
+    left=()
+    for pid in "${pids[@]}"; do
+      if kill -0 "$pid" 2>/dev/null; then mapfile -t -O "${#left[@]}" left < <(tree "$pid"); fi
+    done
+    [ ${#left[@]} -gt 0 ] || return 0
+    sleep 0.5
+  done
+  kill -KILL "${left[@]}" 2>/dev/null || true
 }
 trap stop_background EXIT
 trap 'exit 143' TERM
@@ -83,21 +90,10 @@ session() {
 
 bash scripts/setup.sh base
 lint
-# The stack builds beside the fast tier at the lowest priority: the fast tier keeps its
-# cores (many of its tests wait on a partner or a timeout), the compilers take what it
-# leaves idle. The fast tier's tests need nothing of the stack.
-STACK_LOG="$OUT/setup-stack.log"
-nice -n 19 bash scripts/setup.sh stack >"$STACK_LOG" 2>&1 &
-stack_pid=$!
-BACKGROUND+=("$stack_pid")
 GYMPRECICE_TIER=fast GYMPRECICE_DURATIONS="$OUT/durations-1-fast.json" \
   session "${PYTEST[@]}" ${PARALLEL[@]+"${PARALLEL[@]}"}
-stack_status=0
-wait "$stack_pid" || stack_status=$?
-BACKGROUND=()
-echo "== the real stack (scripts/setup.sh stack, built beside the fast tier) =="
-cat "$STACK_LOG"
-if [ "$stack_status" != 0 ]; then exit "$stack_status"; fi
+
+bash scripts/setup.sh stack
 # The rest's tests that mostly wait: those that start a Ray cluster (for nodes, heartbeats,
 # restarted actors) and those marked `waits` (for timeouts and signals), one after another,
 # then RLlib's in their own environment (gymnasium 1.2.2, .venv-rllib): two Ray clusters at
