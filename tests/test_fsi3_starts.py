@@ -99,7 +99,7 @@ def test_a_case_from_starts_holds_every_fluid_state_and_hands_both_solvers_one_s
     # the first iterate from a saved state is not relaxed towards the zeros preCICE keeps
     # as its previous iterate (the packaged 0.1 threw a swinging bar back towards rest)
     assert files["precice-config.xml"].count('<initial-relaxation value="1" />') == 1
-    assert "initial-relaxation value=\"0.1\"" in case_files("coarse")["precice-config.xml"]
+    assert 'initial-relaxation value="0.1"' in case_files("coarse")["precice-config.xml"]
     # an episode lasts episode_time from its start: the coupling's max-time
     assert files["precice-config.xml"].count('<max-time value="0.5" />') == 2
 

@@ -10,8 +10,8 @@ state at the start times, and the states are gathered into a new library folder:
         [--resolution coarse] [--time-step 0.002] [--degree 2] \\
         [--first 6.0] [--count 12] [--spacing 0.02] [--checkpoint-every 1.0] [--smoke]
 
-The run takes about 80 minutes on 2 cores (:data:`.starts.BUILD_COST`: three quarters
-of the coupled validation run's 8 s), so it goes in segments: every
+The run takes about 70 minutes on 2 cores (:data:`.starts.BUILD_COST`, measured), so it
+goes in segments: every
 ``--checkpoint-every`` simulated seconds its state is kept as a one-start library in the
 run folder (``.<name>-run/checkpoints/``), and the next segment starts from it as an
 episode starts from a start. The same command, run again after an interruption, goes on

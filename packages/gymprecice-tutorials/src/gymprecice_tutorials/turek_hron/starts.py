@@ -55,9 +55,9 @@ INDEX = "starts.json"
 UNCONTROLLED = "uncontrolled.npz"
 #: the command that builds a library (``--out DIR`` puts it elsewhere than the default)
 BUILD_COMMAND = "python -m gymprecice_tutorials.turek_hron.build_starts"
-#: what building the full library costs (the build's defaults: 6.22 s of the coupled run,
-#: about three quarters of the 8 s validation run with the FEniCS bar, docs/validation.md)
-BUILD_COST = "about 80 min on 2 cores"
+#: what building the full library costs (the build's defaults: 6.22 s of the coupled run;
+#: 71 min measured on 2 cores, docs/validation.md)
+BUILD_COST = "about 70 min on 2 cores"
 
 
 def default_starts() -> Path:
