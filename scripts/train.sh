@@ -55,7 +55,8 @@
 #   (it runs and prints the lab's commands: gymprecice sweep --starts validation to tune
 #   the PID, gymprecice sweep / evaluate on the held-out starts, compare, plot)
 #
-# Sets up the machine like the tests do, then checks it with `gymprecice doctor`: training
+# Sets up the machine like the tests do (but for RLlib's environment, which only its tests use),
+# then checks it with `gymprecice doctor`: training
 # couples to real OpenFOAM through preCICE, so without preCICE (and the OpenFOAM-preCICE
 # adapter) it stops at once and says what to install. Ctrl-C saves; the same command resumes.
 set -euo pipefail
@@ -63,7 +64,8 @@ set -euo pipefail
 GYMPRECICE_STARTED_AT="$(date +%s.%N)"
 export GYMPRECICE_STARTED_AT
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+# RLlib's environment (.venv-rllib) is for its tests, not for training: not built here
+GYMPRECICE_SKIP_RLLIB="${GYMPRECICE_SKIP_RLLIB:-1}" bash scripts/setup.sh
 recipe=(--algo sac --hyperparams benchmarks/hyperparams/sac-overlap-utd4.yml --timesteps 6000
     --env-kwargs '{"base_feedback": {"gain": -1, "delay": 6}}' --stop-at 0.97
     --eval-freq 1600 --validation-time 10)
