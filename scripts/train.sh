@@ -55,10 +55,10 @@
 #   (it runs and prints the lab's commands: gymprecice sweep --starts validation to tune
 #   the PID, gymprecice sweep / evaluate on the held-out starts, compare, plot)
 #
-# Sets up the machine like the tests do (but for RLlib's environment, which only its tests use),
-# then checks it with `gymprecice doctor`: training
-# couples to real OpenFOAM through preCICE, so without preCICE (and the OpenFOAM-preCICE
-# adapter) it stops at once and says what to install. Ctrl-C saves; the same command resumes.
+# Sets up the machine like the tests do (but for RLlib's environment, which only its
+# tests use), then checks it with `gymprecice doctor`: training couples to real OpenFOAM
+# through preCICE, so without preCICE (and the OpenFOAM-preCICE adapter) it stops at once
+# and says what to install. Ctrl-C saves; the same command resumes.
 set -euo pipefail
 # the clock of "how long did it take" starts here, before the set-up (gymprecice train reads it)
 GYMPRECICE_STARTED_AT="$(date +%s.%N)"
