@@ -37,11 +37,7 @@ macros = _load_macros()
 #: tasks whose animation cannot be made yet, and why: their section shows the case's
 #: sketch, which scripts/make_docs_pictures.sh makes, until the script's animation line
 #: for them has run (then drop the task from here)
-NOT_ANIMATED_YET = {
-    "Turek and Hron's FSI3 (an elastic bar behind a cylinder)": (
-        "its episodes start from a library of starts that one long uncontrolled run builds"
-    ),
-}
+NOT_ANIMATED_YET: dict[str, str] = {}
 
 
 def _sections() -> dict[str, str]:
