@@ -335,6 +335,41 @@ def time_to_floor(recipe: str, fraction: float, results: Path = RESULTS) -> dict
     }
 
 
+def kept_models(recipe: str, results: Path = RESULTS) -> list[dict[str, Any]]:
+    """Each run's model that ``gymprecice time-to-floor`` evaluated last (the kept one),
+    in run order: its ``steps``, when it was saved (``saved``, from the typed command),
+    the fraction of the floor it takes once settled (``settled``, over the held-out
+    starts) and from each start (``per_start``)."""
+    data = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")
+    models = []
+    for run in data["runs"]:
+        last = run["checkpoints"][-1]
+        models.append(
+            {
+                "steps": thousands(last["steps"]),
+                "saved": clock(last["seconds"]),
+                "settled": _write(last["settled_floor_fraction"], "percent"),
+                "per_start": [_write(f, "percent") for f in last["per_start"]],
+            }
+        )
+    return models
+
+
+def typed_run(recipe: str, results: Path = RESULTS) -> dict[str, str]:
+    """A command typed on a fresh machine whose kept model ``time-to-floor`` evaluated:
+    its set-up's time (``setup``), its case's pre-run's (``prerun``), the two together
+    (``before``) and the whole command's (``whole``, the evaluation included), from the
+    ``typed`` record of its results file."""
+    typed = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")["typed"]
+    setup, prerun = typed["setup_seconds"], typed["prerun_seconds"]
+    return {
+        "setup": clock(setup),
+        "prerun": clock(prerun),
+        "before": clock(setup + prerun),
+        "whole": clock(typed["whole_command_seconds"]),
+    }
+
+
 def cost(name: str, policies: Path = POLICIES) -> str:
     """What a recorded training run took on the wall-clock: the run of the shipped policy
     ``name`` (its ``policy.json``): ``cost("perpendicular-flap-fast")`` is ``1 h 1 min``,
@@ -717,6 +752,8 @@ def define_env(env: Any) -> None:
     env.variables["shipped"] = shipped()
     env.variables["setup"] = setup_figures()
     env.macro(command_reference)
+    env.macro(kept_models)
+    env.macro(typed_run)
     env.macro(score)
     env.macro(results_table)
     env.macro(seed_means)

@@ -99,6 +99,29 @@ def test_a_rerun_changes_every_quoted_figure(tmp_path: Path) -> None:
     }
 
 
+def test_a_typed_run_s_kept_model_and_its_times_are_read_from_its_results_file(
+    tmp_path: Path,
+) -> None:
+    results = tmp_path / "results"
+    shutil.copytree(macros.RESULTS, results)
+    (model,) = macros.kept_models("train-sh-fresh", results)
+    assert model["steps"] == "1,600" and model["saved"] == "9 min 14 s"
+    assert model["settled"] == "98.9 %" and model["per_start"] == ["98.9 %", "99.0 %"]
+    assert macros.typed_run("train-sh-fresh", results) == {
+        "setup": "1 min 43 s",
+        "prerun": "47 s",
+        "before": "2 min 30 s",
+        "whole": "11 min 05 s",
+    }
+    path = results / "time-to-floor-jet-cylinder-fast-train-sh-fresh.json"
+    data = json.loads(path.read_text())
+    data["typed"]["setup_seconds"] = 60
+    data["runs"][0]["checkpoints"][-1]["settled_floor_fraction"] = 0.95
+    path.write_text(json.dumps(data))
+    assert macros.typed_run("train-sh-fresh", results)["before"] == "1 min 47 s"
+    assert macros.kept_models("train-sh-fresh", results)[0]["settled"] == "95.0 %"
+
+
 def test_the_set_up_table_is_written_from_its_timings() -> None:
     setup = macros.setup_figures()
     assert setup["fresh"] == "7 min 40 s" and setup["second"] == "16 s"
