@@ -22,6 +22,7 @@ from gymprecice_lab.benchmarking.checks import (
 )
 from gymprecice_lab.benchmarking.stats import estimate, iqm
 from gymprecice_lab.common.command_runs import CommandFailed, run_commands
+from gymprecice_lab.common.manifest import file_sha256
 from gymprecice_lab.common.registered_env import find_lab_env
 from gymprecice_lab.rollouts.feedback import FeedbackController
 
@@ -724,6 +725,12 @@ def test_with_ray_every_seed_trains_evaluates_and_the_sweep_runs_on_the_cluster(
         assert len(summary["episodes"]) == 2
         manifest = (run / "manifest.json").read_text()
         assert str(train) in manifest and "gymprecice-command-" not in manifest
+        # the kept model's evaluation is the kept model's, the final one's the final's
+        for which, model in (("eval", "best_model.zip"), ("eval-final", "model.zip")):
+            recorded = json.loads(
+                (out / which / "ppo" / f"seed_{seed}" / "manifest.json").read_text()
+            )
+            assert recorded["settings"]["model_sha256"] == file_sha256(train / model), which
         kept = [p for p in (run / "envs").rglob("*") if p.is_file()]
         assert kept and all(p.name.startswith("log.") or p.suffix == ".log" for p in kept)
     sweep = json.loads((out / "baselines" / "remote.json").read_text())

@@ -53,6 +53,28 @@ def test_a_training_directory_ships_its_top_level_files_and_an_output_comes_back
     ]
 
 
+def test_a_training_run_shipped_to_a_node_keeps_its_kept_model(tmp_path) -> None:
+    """``evaluate --model kept`` on the node must take the model training kept, which its
+    record in ``eval/best.json`` names: shipped without it, the node took the final model
+    and the benchmark's kept-model evaluation on a cluster was the final model's."""
+    from gymprecice_lab.benchmarking.remote_commands import _input_archive
+    from gymprecice_lab.common.kept_model import choose_model
+
+    train = tmp_path / "seed_0"
+    (train / "eval").mkdir(parents=True)
+    (train / "model.zip").write_text("final")
+    (train / "best_model.zip").write_text("kept")
+    (train / "eval" / "best.json").write_text(json.dumps({"timesteps": 16, "mean_return": 0.5}))
+    (train / "eval" / "env_0.monitor.csv").write_text("validation episodes")
+    name, is_dir, blob = _input_archive("--policy", train)
+    assert (name, is_dir) == ("seed_0", True)
+    unpack(blob, tmp_path / "node" / name)
+    shipped = tmp_path / "node" / name
+    assert _tree(shipped) == ["best_model.zip", "eval/best.json", "model.zip"]
+    assert choose_model(shipped, "kept")[0] == shipped / "best_model.zip"
+    assert choose_model(shipped, "final")[0] == shipped / "model.zip"
+
+
 def test_a_command_no_node_can_hold_is_refused_with_the_fix() -> None:
     check_fits([("the sweep", 8)], 8)
     with pytest.raises(RemoteCommandError, match="the sweep needs 8 CPUs on one node, but the"):

@@ -63,7 +63,8 @@ class RemoteCommand:
 
     ``argv`` has no ``--out``: the task adds the node's copy of ``out``. Each of
     ``inputs`` is an option whose value is a driver path (a file, or a directory whose
-    top-level files are shipped) and becomes the node's copy of it.
+    top-level files are shipped, with a training run's kept-model record) and becomes the
+    node's copy of it.
     """
 
     argv: Sequence[str]
@@ -76,10 +77,17 @@ class RemoteCommand:
 # -- archives -------------------------------------------------------------------------------
 
 
-def pack(path: Path, *, top_level_only: bool = False, skip_runs: bool = False) -> bytes:
+def pack(
+    path: Path,
+    *,
+    top_level_only: bool = False,
+    skip_runs: bool = False,
+    also: Sequence[Path] = (),
+) -> bytes:
     """A gzip'ed tar of ``path`` (a file, or the contents of a directory); links are
-    followed. ``top_level_only``: a directory's files, not its subdirectories.
-    ``skip_runs``: without the env runs (``envs/``) except their logs."""
+    followed. ``top_level_only``: a directory's files, not its subdirectories, but for
+    the files of ``also`` (paths relative to it) where they exist. ``skip_runs``: without
+    the env runs (``envs/``) except their logs."""
     buffer = io.BytesIO()
     with tarfile.open(fileobj=buffer, mode="w:gz", dereference=True) as tar:
         if path.is_file():
@@ -89,7 +97,7 @@ def pack(path: Path, *, top_level_only: bool = False, skip_runs: bool = False) -
                 relative = item.relative_to(path)
                 if not item.is_file():
                     continue
-                if top_level_only and len(relative.parts) > 1:
+                if top_level_only and len(relative.parts) > 1 and relative not in also:
                     continue
                 if skip_runs and relative.parts[0] == RUN_DIR and not _is_log(item.name):
                     continue
@@ -236,9 +244,15 @@ def check_fits(needs: Sequence[tuple[str, float]], cpus: float) -> None:
 
 
 def _input_archive(option: str, path: Path) -> tuple[str, bool, bytes]:
+    """A driver path as its node copy: a file, or a directory's top-level files with a
+    training run's kept-model record (``eval/best.json``): without it, ``--model kept``
+    on the node would take the final model, and the evaluation would not be the kept
+    model's."""
+    from gymprecice_lab.common.kept_model import KEPT_RECORD
+
     if not path.exists():
         raise RemoteCommandError(f"{option} {path}: no such file or directory to ship")
-    return path.name, path.is_dir(), pack(path, top_level_only=path.is_dir())
+    return path.name, path.is_dir(), pack(path, top_level_only=path.is_dir(), also=[KEPT_RECORD])
 
 
 def run_commands(commands: Sequence[RemoteCommand], address: str) -> None:
