@@ -37,9 +37,10 @@ from typing import Any
 import numpy as np
 
 from gymprecice_tutorials.turek_hron import starts as start_library
+from gymprecice_tutorials.turek_hron.reference import up_crossings
 from gymprecice_tutorials.turek_hron.series import SIGNALS, Series, recorded_series
 
-__all__ = ["TOLERANCES", "compare_with_series", "main", "swing_of", "up_crossings"]
+__all__ = ["TOLERANCES", "compare_with_series", "main", "swing_of"]
 
 #: the largest departure from the uncontrolled series each signal may show, as a
 #: fraction of the series' largest magnitude over the episode (tip: 0.1 % of its swing,
@@ -74,14 +75,6 @@ def compare_with_series(episode: Series, series: Series, start: float) -> dict[s
     return result
 
 
-def up_crossings(time: np.ndarray, values: np.ndarray) -> list[float]:
-    """The times at which ``values`` crosses zero upwards, linearly interpolated."""
-    time, values = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
-    at = np.flatnonzero((values[:-1] < 0) & (values[1:] >= 0))
-    fraction = -values[at] / (values[at + 1] - values[at])
-    return [float(t) for t in time[at] + fraction * (time[at + 1] - time[at])]
-
-
 def swing_of(time: np.ndarray, tip_dy: np.ndarray, span: tuple[float, float]) -> dict:
     """The tip's range (m) and upward zero crossings (s) over ``span``."""
     time, tip_dy = np.asarray(time, dtype=float), np.asarray(tip_dy, dtype=float)
@@ -89,7 +82,7 @@ def swing_of(time: np.ndarray, tip_dy: np.ndarray, span: tuple[float, float]) ->
     return {
         "tip_dy_min": float(tip_dy[inside].min()),
         "tip_dy_max": float(tip_dy[inside].max()),
-        "up_crossings": up_crossings(time[inside], tip_dy[inside]),
+        "up_crossings": [float(t) for t in up_crossings(time[inside], tip_dy[inside])],
     }
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PUBLISHED", "Figure", "Oscillation", "oscillation"]
+__all__ = ["PUBLISHED", "Figure", "Oscillation", "oscillation", "up_crossings"]
 
 
 @dataclass(frozen=True)
@@ -69,6 +69,15 @@ class Oscillation:
     periods: int  # whole periods the frequency was measured over
 
 
+def up_crossings(time: np.ndarray, values: np.ndarray, level: float = 0.0) -> np.ndarray:
+    """The times at which ``values`` crosses ``level`` upwards, interpolated linearly
+    between samples."""
+    t = np.asarray(time, dtype=float)
+    v = np.asarray(values, dtype=float)
+    idx = np.nonzero((v[:-1] < level) & (v[1:] >= level))[0]
+    return t[idx] + (level - v[idx]) * (t[idx + 1] - t[idx]) / (v[idx + 1] - v[idx])
+
+
 def oscillation(time: np.ndarray, values: np.ndarray, window: float) -> Oscillation:
     """``mean ± amplitude`` and frequency of ``values`` over the last ``window`` seconds.
 
@@ -81,10 +90,7 @@ def oscillation(time: np.ndarray, values: np.ndarray, window: float) -> Oscillat
     v = np.asarray(values, dtype=float)
     keep = t >= t[-1] - window
     t, v = t[keep], v[keep]
-    mid = 0.5 * (v.max() + v.min())
-    below, above = v[:-1] < mid, v[1:] >= mid
-    idx = np.nonzero(below & above)[0]
-    crossings = t[idx] + (mid - v[idx]) * (t[idx + 1] - t[idx]) / (v[idx + 1] - v[idx])
+    crossings = up_crossings(t, v, 0.5 * (v.max() + v.min()))
     if len(crossings) < 2:
         return Oscillation(float("nan"), float("nan"), float("nan"), 0)
     periods = len(crossings) - 1
