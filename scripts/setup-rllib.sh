@@ -6,10 +6,12 @@
 #
 #   bash scripts/setup-rllib.sh      # idempotent: a second run takes seconds
 #
-# torch is installed *pinned* first, so pip takes the CPU build instead of resolving an
-# unpinned torch with several GB of CUDA packages.
+# torch is installed *pinned* first, with pip, so pip takes the CPU build instead of
+# resolving an unpinned torch with several GB of CUDA packages; uv installs the rest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=scripts/venv-install.sh
+source scripts/venv-install.sh
 
 TORCH_VERSION="${GYMPRECICE_TORCH_VERSION:-2.13.0}"
 RAY_VERSION="${GYMPRECICE_RLLIB_RAY_VERSION:-2.60.0}"
@@ -22,9 +24,8 @@ if [ ! -x "$VENV/bin/python" ]; then
   "$PYTHON" -m venv "$VENV"
 fi
 PY="$VENV/bin/python"
-PIP="$PY -m pip"
 STAMP="$VENV/.gymprecice-setup"
-WANT="torch==${TORCH_VERSION} ray[rllib]==${RAY_VERSION} pettingzoo==${PETTINGZOO_VERSION} tutorials[train] $(cat packages/*/pyproject.toml | cksum)"
+WANT="torch==${TORCH_VERSION} ray[rllib]==${RAY_VERSION} pettingzoo==${PETTINGZOO_VERSION} tutorials[train] $(cat pyproject.toml packages/*/pyproject.toml scripts/venv-install.sh | cksum)"
 
 if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ] \
   && "$PY" -c "import torch, ray.rllib, pettingzoo, gymprecice, gymprecice_tutorials, stable_baselines3, pytest" >/dev/null 2>&1; then
@@ -32,13 +33,8 @@ if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ] \
   exit 0
 fi
 
-$PIP install -q --disable-pip-version-check --upgrade pip >/dev/null
-if [ "$("$PY" -c 'import torch; print(torch.__version__.split("+")[0])' 2>/dev/null)" != "$TORCH_VERSION" ]; then
-  $PIP install -q --disable-pip-version-check "torch==${TORCH_VERSION}"
-fi
-# torch stays pinned through the rest: a resolver must not swap it for a CUDA build.
-$PIP install -q --disable-pip-version-check \
-  "torch==${TORCH_VERSION}" \
+# torch pinned with pip, the rest with uv, torch held (scripts/venv-install.sh)
+venv_install "$PY" "$TORCH_VERSION" \
   "ray[rllib]==${RAY_VERSION}" \
   "pettingzoo==${PETTINGZOO_VERSION}" \
   -e packages/gymprecice-core \

@@ -12,10 +12,11 @@
 # 1. Debian packages (when missing and when allowed to): OpenFOAM v1912, deal.II, Open MPI,
 #    and what building preCICE needs (compiler, CMake, Boost, Eigen, libxml2), in one apt
 #    transaction; while apt runs, step 2 runs beside it where Python can make a venv already.
-# 2. A virtual environment in .venv with the four distributions editable. torch is installed
-#    *pinned* before stable-baselines3 so pip takes the CPU build instead of resolving an
-#    unpinned torch with several GB of CUDA packages. Also the documentation site's
-#    dependencies (docs/requirements.txt) and TorchRL for its guide (examples/).
+# 2. A virtual environment in .venv with the distributions editable. torch is installed
+#    *pinned*, with pip, before stable-baselines3 so pip takes the CPU build instead of
+#    resolving an unpinned torch with several GB of CUDA packages; uv installs the rest, with
+#    torch held (scripts/venv-install.sh). Also the documentation site's dependencies
+#    (docs/requirements.txt) and TorchRL for its guide (examples/).
 # 3. `gymprecice install`: preCICE, pyprecice and both preCICE adapters, built from release
 #    sources into a per-user prefix (reused by every clone; a second run takes seconds).
 #    Sources: $GYMPRECICE_SOURCES (an offline mirror of the release archives; default: a
@@ -38,6 +39,8 @@
 # GYMPRECICE_SOURCES, GYMPRECICE_STACK_PREFIX (default ~/.local/share/gymprecice/stack).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=scripts/venv-install.sh
+source scripts/venv-install.sh
 
 TORCH_VERSION="${GYMPRECICE_TORCH_VERSION:-2.13.0}"
 PYTHON="${PYTHON:-python3}"
@@ -203,37 +206,32 @@ if [ "$PART" != stack ]; then
 if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi
-PIP=".venv/bin/python -m pip"
 # What .venv was installed from: the distributions' pyproject.toml files, the docs'
 # requirements and this script. When none changed since the last install and every
 # distribution still imports, pip has nothing to do: skip it (it takes most of a minute
 # only to find that out, and `bash scripts/train.sh` counts that time).
 VENV_STAMP=.venv/.gymprecice-setup-inputs
 venv_inputs() {
-  cat packages/*/pyproject.toml docs/requirements.txt "$0" | sha256sum | cut -d' ' -f1
+  cat pyproject.toml packages/*/pyproject.toml docs/requirements.txt "$0" scripts/venv-install.sh |
+    sha256sum | cut -d' ' -f1
 }
 if [ -f "$VENV_STAMP" ] && [ "$(cat "$VENV_STAMP")" = "$(venv_inputs)" ] &&
   .venv/bin/python -c "import gymprecice, gymprecice_lab, gymprecice_tutorials, gymprecice_openfoam, gymprecice_dealii, gymprecice_fenics, torch, xdist" >/dev/null 2>&1; then
   echo "setup: .venv up to date (its inputs are unchanged since it was installed)"
 else
 rm -f "$VENV_STAMP"
-$PIP install -q --disable-pip-version-check --upgrade pip >/dev/null
-if ! .venv/bin/python -c "import torch" >/dev/null 2>&1; then
-  $PIP install -q --disable-pip-version-check "torch==${TORCH_VERSION}"
-fi
-$PIP install -q --disable-pip-version-check \
+# torch pinned with pip, the rest with uv (scripts/venv-install.sh says why); pytest-xdist
+# runs the test suite's two workers (scripts/test.sh)
+venv_install .venv/bin/python "$TORCH_VERSION" \
   -e "packages/gymprecice-core[ray]" \
   -e packages/gymprecice-openfoam \
   -e packages/gymprecice-dealii \
   -e packages/gymprecice-fenics \
   -e packages/gymprecice-lab \
   -e "packages/gymprecice-tutorials[train]" \
-  pytest pytest-timeout "ruff==0.17.6" build mpi4py pettingzoo \
+  pytest pytest-timeout "pytest-xdist==3.8.0" "ruff==0.17.6" build mpi4py pettingzoo \
   imageio imageio-ffmpeg moviepy \
   -r docs/requirements.txt "torchrl==0.14.1"
-# The test suite's two workers (scripts/test.sh): pytest-xdist.
-.venv/bin/python -c "import xdist" >/dev/null 2>&1 ||
-  $PIP install -q --disable-pip-version-check "pytest-xdist==3.8.0"
 venv_inputs >"$VENV_STAMP"
 fi
 phase ".venv ready"

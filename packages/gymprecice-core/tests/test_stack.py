@@ -190,6 +190,45 @@ def test_steps_that_need_nothing_of_each_other_build_side_by_side(prefix, tmp_pa
     assert events == ["start lib2", "end lib2", "start a", "end a", "start b", "end b"]
 
 
+def test_the_longest_ready_steps_start_first_and_the_short_ones_fill_in(prefix, tmp_path):
+    """Two slots, four steps after ``lib``: the two longest (by ``about_seconds``) start
+    together whatever the listed order; each short one starts only when a slot frees."""
+    events: list[str] = []
+    lock = threading.Lock()
+    long_ones = threading.Barrier(2)
+
+    def step(name: str, about: float, *requires: str) -> InstallStep:
+        def build(ctx: BuildContext) -> None:
+            with lock:
+                events.append(f"start {name}")
+            if name in ("big", "large"):
+                long_ones.wait(timeout=10)  # BrokenBarrierError: they did not run together
+            (ctx.prefix / "lib").mkdir(parents=True, exist_ok=True)
+            (ctx.prefix / "lib" / name).touch()
+            with lock:
+                events.append(f"end {name}")
+
+        def built(p: Path) -> Path | None:
+            return p / "lib" / name if (p / "lib" / name).exists() else None
+
+        return InstallStep(
+            name, f"{name} 1.0", "1.0", build, built, requires=requires, about_seconds=about
+        )
+
+    steps = [
+        step("lib", 150),
+        step("small", 45, "lib"),
+        step("tiny", 40, "lib"),
+        step("big", 100, "lib"),
+        step("large", 90, "lib"),
+    ]
+    results = install(steps, jobs=2, at_once=2, say=lambda _line: None)
+    assert [r.step.name for r in results] == ["lib", "small", "tiny", "big", "large"]
+    assert all(r.status == "built" for r in results)
+    assert set(events[2:4]) == {"start big", "start large"}
+    assert events.index("start small") > min(events.index("end big"), events.index("end large"))
+
+
 def test_found_elsewhere_is_used_not_rebuilt(prefix, tmp_path):
     archive = make_archive(tmp_path / "mirror")
     step = copying_step(archive, found=lambda: "/opt/demo (pkg-config)")

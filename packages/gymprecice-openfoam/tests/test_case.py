@@ -361,6 +361,13 @@ def test_envs_share_one_prerun_through_the_cache(cylinder_case, solver_for, tmp_
     assert fields[0] == fields[1] == fields[2]
     assert all(s.state["openfoam"].initial_time == "0.01" for s in solvers)
 
+    # A case whose episodes are longer (another endTime in controlDict, which a pre-run
+    # overrides) takes the same pre-run: a training's validation env with longer episodes.
+    later = solver_for(cylinder_case("later", end_time=0.05, delta_t=0.002), prerun_end_time=0.01)
+    case.prepare_case(later)
+    assert (later.run_dir / "log.prerun.pimpleFoam").read_text().startswith("// gymprecice")
+    assert (later.run_dir / "0.01" / "U").read_bytes() == fields[0]
+
     # Another input (here the pre-run's end) is another entry; false turns sharing off.
     longer = solver_for(cylinder_case("longer", end_time=0.03, delta_t=0.002), prerun_end_time=0.02)
     case.prepare_case(longer)
@@ -380,6 +387,22 @@ def test_envs_share_one_prerun_through_the_cache(cylinder_case, solver_for, tmp_
     )
     case.prepare_case(elsewhere)
     assert len([p for p in own.iterdir() if p.is_dir()]) == 1
+
+
+def test_the_pre_run_cache_reads_controldict_without_what_a_pre_run_overrides() -> None:
+    from gymprecice_openfoam.control import as_a_prerun_reads_it
+
+    case = b"application pimpleFoam;\nstartFrom startTime;\nstartTime 0;\nendTime 6;\n" \
+        b"deltaT 0.001;\nwriteInterval 6;\nfunctions\n{\n    endTime 3;\n}\n"  # fmt: skip
+    longer = case.replace(b"endTime 6;", b"endTime 15;").replace(
+        b"writeInterval 6", b"writeInterval 9"
+    )
+    finer = case.replace(b"deltaT 0.001", b"deltaT 0.0005")
+    assert as_a_prerun_reads_it(case) == as_a_prerun_reads_it(longer)
+    assert as_a_prerun_reads_it(case) != as_a_prerun_reads_it(finer)
+    # an entry of a sub-dictionary is not the run's span: kept
+    nested = case.replace(b"    endTime 3;", b"    endTime 4;")
+    assert as_a_prerun_reads_it(case) != as_a_prerun_reads_it(nested)
 
 
 def test_prerun_cache_option_is_checked() -> None:

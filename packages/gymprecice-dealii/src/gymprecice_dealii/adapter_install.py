@@ -94,4 +94,5 @@ def elasticity_step() -> InstallStep:
         needs="install deal.II, a C++ compiler, make and CMake, and run it again",
         prerequisites=(CXX, MAKE, CMAKE, DEALII),
         key_extra=" ".join(CMAKE_OPTIONS),
+        about_seconds=100,
     )

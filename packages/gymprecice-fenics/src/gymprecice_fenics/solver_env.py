@@ -289,4 +289,5 @@ def fenics_install_step() -> InstallStep:
         # pyprecice is compiled for the system Python inside the environment
         prerequisites=(SYSTEM_FENICS, CXX, PKG_CONFIG),
         key_extra=f"pyprecice {PYPRECICE_VERSION} on {SYSTEM_PYTHON}",
+        about_seconds=40,
     )

@@ -241,4 +241,5 @@ def openfoam_adapter_step() -> InstallStep:
         ),
         key_extra=_key_extra(),
         prerequisites=(CXX, MAKE, OPENFOAM),
+        about_seconds=90,
     )

@@ -147,7 +147,12 @@ def shared_prerun(
         "prerun_args": extra_args,
         "openfoam": [str(inst.project_dir), inst.version],
     }
-    key = prerun_cache.entry_key(run_dir, skip=skip, parameters=parameters)
+    key = prerun_cache.entry_key(
+        run_dir,
+        skip=skip,
+        parameters=parameters,
+        as_read={"system/controlDict": control.as_a_prerun_reads_it},
+    )
     roots = {os.path.relpath(r, run_dir): r for r in time_roots(run_dir)}  # ".", "processor0"
     with prerun_cache.locked_entry(directory, key) as entry:
         if prerun_cache.restore(entry, run_dir) is not None:

@@ -148,6 +148,34 @@ def uncoupled_control_dict(
         path.write_bytes(original)
 
 
+#: the entries :func:`uncoupled_control_dict` sets for a pre-run segment, whatever the
+#: case had (with ``startFrom latestTime``, ``startTime`` is not read)
+PRERUN_OVERRIDES = (
+    "startFrom",
+    "startTime",
+    "stopAt",
+    "endTime",
+    "writeControl",
+    "writeInterval",
+    "purgeWrite",
+)
+_OVERRIDDEN = re.compile(
+    rb"^(" + b"|".join(k.encode() for k in PRERUN_OVERRIDES) + rb")[ \t]+[^;\n]*;", re.M
+)
+
+
+def as_a_prerun_reads_it(control_dict: bytes) -> bytes:
+    """A controlDict's bytes without the values a pre-run overrides.
+
+    An episode's length changes ``endTime`` and ``writeInterval`` in the case (and a
+    start changes ``startTime``), not what a pre-run computes: the pre-run cache hashes
+    this instead of the file, so a training's envs, its validation env (longer episodes)
+    and an evaluation share one pre-run. Only top-level entries written one a line are
+    recognised; any other form stays in the hash (a distinct entry, never a wrong one).
+    """
+    return _OVERRIDDEN.sub(rb"\1 <pre-run>;", control_dict)
+
+
 def set_start(
     case_dir: str | os.PathLike[str], start_name: str, *, end_time: float | None = None
 ) -> bool:

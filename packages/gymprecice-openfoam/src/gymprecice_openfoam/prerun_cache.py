@@ -4,11 +4,13 @@ Each environment prepares its own copy of the case, and each would otherwise rep
 same uncoupled pre-run to a developed flow: minutes (the quickstart) to tens of minutes
 (the jet cylinder) of CPU for a result that is the same every time, paid again by every
 ``train``, ``evaluate`` and ``baseline``. A pre-run is a function of the case's files
-before it (mesh, decomposition, fields, dictionaries), the application, the process count,
-the target times, the extra arguments and the OpenFOAM installation; its output time
-directories are stored under a hash of exactly those inputs, and a later prepare with the
-same inputs copies them instead of running. A lock per entry makes environments that
-prepare at the same time wait for the first one's pre-run instead of all running it.
+before it (mesh, decomposition, fields, dictionaries; controlDict without the run's span,
+which the pre-run sets itself, so episodes of any length share it), the application, the
+process count, the target times, the extra arguments and the OpenFOAM installation; its
+output time directories are stored under a hash of exactly those inputs, and a later
+prepare with the same inputs copies them instead of running. A lock per entry makes
+environments that prepare at the same time wait for the first one's pre-run instead of all
+running it.
 
 Where: ``$GYMPRECICE_CACHE_DIR/openfoam-prerun`` or ``$XDG_CACHE_HOME/gymprecice/...``
 (default ``~/.cache/gymprecice/openfoam-prerun``); the solver option ``prerun_cache``
@@ -24,7 +26,7 @@ import hashlib
 import json
 import os
 import shutil
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -61,14 +63,23 @@ def entry_key(
     *,
     skip: Sequence[str],
     parameters: Mapping[str, Any],
+    as_read: Mapping[str, Callable[[bytes], bytes]] | None = None,
 ) -> str:
     """Hash of every input file under ``run_dir`` (names and contents) and ``parameters``.
 
     ``skip``: top-level names that are not inputs (logs, earlier outputs, stores).
+    ``as_read``: for a file (its path relative to ``run_dir``), what of its contents the
+    pre-run depends on, hashed instead of the contents: two cases that differ only where
+    the pre-run overrides the file share one entry.
     """
+    as_read = as_read or {}
     digest = hashlib.sha256(json.dumps(parameters, sort_keys=True, default=str).encode())
     for path in sorted(_input_files(run_dir, set(skip))):
-        digest.update(b"\0" + path.relative_to(run_dir).as_posix().encode() + b"\0")
+        name = path.relative_to(run_dir).as_posix()
+        digest.update(b"\0" + name.encode() + b"\0")
+        if name in as_read:
+            digest.update(as_read[name](path.read_bytes()))
+            continue
         with path.open("rb") as handle:
             for block in iter(lambda: handle.read(1 << 20), b""):
                 digest.update(block)

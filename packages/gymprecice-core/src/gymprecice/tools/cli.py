@@ -50,6 +50,7 @@ from gymprecice.tools.doctor import (  # noqa: F401
 from gymprecice.tools.doctor import pyprecice_advice as _pyprecice_advice  # noqa: F401
 from gymprecice.tools.install_command import add_install_parser
 from gymprecice.tools.optional import missing_command, missing_dependency
+from gymprecice.tools.prepare_command import add_prepare_parser
 from gymprecice.tools.sketch_command import add_sketch_parser
 
 __all__ = ["build_parser", "doctor_report", "main"]
@@ -91,6 +92,7 @@ def build_parser(pm: GymPrecicePluginManager | None = None) -> argparse.Argument
 
     add_install_parser(sub)
     add_sketch_parser(sub)
+    add_prepare_parser(sub)
     add_clean_parser(sub)
     add_new_parser(sub)
 

@@ -9,11 +9,15 @@ running Python environment with an RPATH to the prefix, so ``import precice`` fi
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
+import json
 import os
 import re
+import shutil
 import subprocess
 import sys
+import sysconfig
 from pathlib import Path
 
 from gymprecice.tools.prerequisites import (
@@ -142,14 +146,36 @@ def _pyprecice_found() -> str | None:
     return f"{module} (preCICE {version})"
 
 
+def _wheel_dir(prefix: Path) -> Path | None:
+    """Where pyprecice's wheel built against this prefix's preCICE is kept, or ``None``.
+
+    Compiling pyprecice takes most of a minute, and every new virtual environment (a fresh
+    clone's ``.venv``, a tutorial's own) needs it: the wheel is built once per preCICE build,
+    pyprecice version and Python, and installed from there afterwards. Keyed by preCICE's
+    build record (the stamp's key: version, archive, CMake options), so a rebuilt preCICE of
+    other options gets its own wheel. A preCICE not built in the prefix has no record: then
+    nothing is reused (pip's own wheel cache is off for the same reason).
+    """
+    stamp = prefix / "stamps" / "precice.json"
+    try:
+        record = json.loads(stamp.read_text())["key"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    python = f"{sys.implementation.cache_tag}-{sysconfig.get_platform()}-{sys.abiflags}"
+    key = hashlib.sha256(f"{record}|{PYPRECICE_VERSION}|{python}".encode()).hexdigest()[:16]
+    return prefix / "wheels" / f"pyprecice-{PYPRECICE_VERSION}-{key}"
+
+
 def _build_pyprecice(ctx: BuildContext) -> None:
     libdir = ctx.prefix / "lib"
     env = ctx.pkg_config_env()
+    wheels = None
     if _precice_built(ctx.prefix) is not None:
         # The extension links the stack's libprecice; the RPATH makes `import precice` find
         # it without LD_LIBRARY_PATH (pip's wheel cache would reuse a build against
-        # another preCICE, hence --no-cache-dir).
+        # another preCICE, hence --no-cache-dir, and a wheel kept per preCICE build instead).
         env["LDFLAGS"] = f"{os.environ.get('LDFLAGS', '')} -Wl,-rpath,{libdir}".strip()
+        wheels = _wheel_dir(ctx.prefix)
     if importlib.util.find_spec("mpi4py") is None:
         # pyprecice imports mpi4py at import time (`from mpi4py import MPI`) and declares it,
         # but pyprecice itself is installed with --no-deps below: bring it here.
@@ -158,24 +184,43 @@ def _build_pyprecice(ctx: BuildContext) -> None:
             [sys.executable, "-m", "pip", "install", "--disable-pip-version-check", "mpi4py"],
             cwd=ctx.work,
         )
+    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check"]
+    kept = sorted(wheels.glob("pyprecice-*.whl")) if wheels is not None else []
+    if kept:
+        ctx.say(
+            f"[install]   pyprecice from its wheel built against this preCICE ({kept[-1].name})"
+        )
+        ctx.run([*pip, "install", "--force-reinstall", "--no-deps", kept[-1]], cwd=ctx.work)
+        module, version = probe_pyprecice()
+        if module is not None:
+            return
+        ctx.say(f"[install]   that wheel does not import ({version}): compiling afresh")
+        shutil.rmtree(wheels, ignore_errors=True)
     ctx.say("[install]   compiling pyprecice against preCICE (about a minute)")
-    ctx.run(
-        [
-            sys.executable,
-            "-m",
-            "pip",
-            "install",
-            "--disable-pip-version-check",
-            "--no-cache-dir",
-            "--force-reinstall",
-            "--no-deps",
-            "--no-binary",
-            "pyprecice",
-            f"pyprecice=={PYPRECICE_VERSION}",
-        ],
-        cwd=ctx.work,
-        env=env,
-    )
+    if wheels is None:
+        ctx.run(
+            [*pip, "install", "--no-cache-dir", "--force-reinstall", "--no-deps", "--no-binary",
+             "pyprecice", f"pyprecice=={PYPRECICE_VERSION}"],
+            cwd=ctx.work,
+            env=env,
+        )  # fmt: skip
+    else:
+        scratch = ctx.work / "wheel"
+        ctx.run(
+            [*pip, "wheel", "--no-cache-dir", "--no-deps", "--no-binary", "pyprecice",
+             "--wheel-dir", scratch, f"pyprecice=={PYPRECICE_VERSION}"],
+            cwd=ctx.work,
+            env=env,
+        )  # fmt: skip
+        built = sorted(scratch.glob("pyprecice-*.whl"))
+        if not built:
+            raise BuildError(f"pyprecice {PYPRECICE_VERSION}: pip wrote no wheel")
+        ctx.run([*pip, "install", "--force-reinstall", "--no-deps", built[0]], cwd=ctx.work)
+        # kept whole or not at all: a half-copied wheel is never found
+        wheels.mkdir(parents=True, exist_ok=True)
+        partial = wheels / f".{built[0].name}.partial"
+        shutil.copyfile(built[0], partial)
+        os.replace(partial, wheels / built[0].name)
     module, version = probe_pyprecice()
     if module is None:
         raise BuildError(f"pyprecice {PYPRECICE_VERSION} installed but does not import: {version}")
@@ -195,6 +240,7 @@ def core_install_steps() -> list[InstallStep]:
             needs=BUILD_NEEDS,
             key_extra=" ".join(PRECICE_CMAKE_OPTIONS),
             prerequisites=PRECICE_PREREQUISITES,
+            about_seconds=150,
         ),
         InstallStep(
             name="pyprecice",
@@ -209,5 +255,6 @@ def core_install_steps() -> list[InstallStep]:
             per_environment=True,
             # a C extension compiled by pip (its build dependencies come from the index)
             prerequisites=(CXX, PKG_CONFIG, MPI, python_headers()),
+            about_seconds=45,
         ),
     ]

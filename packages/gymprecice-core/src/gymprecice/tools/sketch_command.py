@@ -33,6 +33,7 @@ __all__ = [
     "config_of",
     "load_case",
     "output_path",
+    "parse_env_kwargs",
 ]
 
 
@@ -94,7 +95,8 @@ def output_path(out: Path) -> Path:
     return out
 
 
-def _env_kwargs(text: str | None) -> dict[str, Any]:
+def parse_env_kwargs(text: str | None) -> dict[str, Any]:
+    """``--env-kwargs``'s JSON object ({} when not given), or :class:`SketchRefused`."""
     if not text:
         return {}
     try:
@@ -162,7 +164,7 @@ def cmd_sketch(args: argparse.Namespace) -> int:
 
     try:
         out = output_path(args.out or Path(f"sketch-{_slug(args.env)}.png"))
-        kwargs = _env_kwargs(args.env_kwargs)
+        kwargs = parse_env_kwargs(args.env_kwargs)
         with tempfile.TemporaryDirectory(prefix="gymprecice-sketch-") as run_root:
             config, title, env = load_case(args.env, run_root, kwargs)
             try:
