@@ -13,6 +13,7 @@ takes seconds). ``$GYMPRECICE_FENICS_PYTHON`` names another interpreter to use i
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -116,17 +117,96 @@ _CACHE: dict[str, EnvironmentReport] = {}
 def probe(python: str | None = None, *, refresh: bool = False) -> EnvironmentReport:
     """Import dolfin, numpy, precice and fenicsprecice in ``python`` and judge the result.
 
-    Runs in a child interpreter (about a second; cached per interpreter for the process):
-    the environment is not this one, and a broken MPI or library can abort an importer.
-    Problems name the piece and the fix: no interpreter, a missing module, numpy 2 (which
-    fenicsprecice 2.x and Debian's dolfin do not support), a pyprecice of preCICE v2.
+    Runs in a child interpreter: the environment is not this one, and a broken MPI or
+    library can abort an importer. That costs a second of CPU and nearly 3 s (dolfin's
+    import), paid by every ``gymprecice doctor`` and by every lab command, whose manifest
+    records the doctor's report: so the answer is cached for the process, and a healthy one
+    of a virtual environment also in that environment's folder, for as long as no file it
+    depends on changes (:func:`_fingerprint`). Problems name the piece and the fix: no interpreter, a
+    missing module, numpy 2 (which fenicsprecice 2.x and Debian's dolfin do not support), a
+    pyprecice of preCICE v2.
     """
     python = python or fenics_python()
     if not refresh and python in _CACHE:
         return _CACHE[python]
-    report = _probe(python)
+    key = _fingerprint(python)
+    report = None if refresh else _stored(python, key)
+    if report is None:
+        report = _probe(python)
+        if report.ok and key is not None:
+            _store(python, key, report)
     _CACHE[python] = report
     return report
+
+
+#: the file beside an interpreter's environment that keeps its last healthy probe
+_STORED = ".gymprecice-probe.json"
+
+
+def _environment_root(python: str) -> Path:
+    return Path(python).parent.parent
+
+
+def _fingerprint(python: str) -> str | None:
+    """Size and modification time of every file the probe's answer depends on: the
+    interpreter, the environment's configuration and site-packages, Debian's package
+    database (dolfin, numpy, scipy and mpi4py are Debian's) and the stack's preCICE
+    library (pyprecice links it); ``None`` when the interpreter is missing."""
+    root = _environment_root(python)
+    paths = [
+        Path(python),
+        root / "pyvenv.cfg",
+        *sorted(root.glob("lib/python3*/site-packages")),
+        Path("/var/lib/dpkg/status"),
+        stack_prefix() / "lib" / "libprecice.so",
+    ]
+    stamps = []
+    for path in paths:
+        try:
+            info = path.stat()
+        except OSError:
+            if path == Path(python):
+                return None
+            stamps.append(f"{path}:-")
+            continue
+        stamps.append(f"{path}:{info.st_size}:{info.st_mtime_ns}")
+    env = [f"{k}={os.environ.get(k, '')}" for k in ("LD_LIBRARY_PATH", "PYTHONPATH")]
+    return "|".join([os.path.realpath(python), *stamps, *env])
+
+
+def _stored(python: str, key: str | None) -> EnvironmentReport | None:
+    """The healthy probe kept for ``python`` when nothing it depends on has changed."""
+    if key is None:
+        return None
+    root = _environment_root(python)
+    if not (root / "pyvenv.cfg").is_file():
+        return None
+    try:
+        data = json.loads((root / _STORED).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("key") != key:
+        return None
+    versions = data.get("versions")
+    if not isinstance(versions, dict):
+        return None
+    return EnvironmentReport(python, {str(k): str(v) for k, v in versions.items()}, ())
+
+
+def _store(python: str, key: str, report: EnvironmentReport) -> None:
+    """Keep a healthy probe in a virtual environment's folder (whole or not at all; an
+    interpreter outside a virtual environment, or an unwritable one, keeps none)."""
+    root = _environment_root(python)
+    if not (root / "pyvenv.cfg").is_file():
+        return
+    target = root / _STORED
+    partial = target.with_name(f"{_STORED}.{os.getpid()}.partial")
+    try:
+        partial.write_text(json.dumps({"key": key, "versions": report.versions}))
+        os.replace(partial, target)
+    except OSError:
+        with contextlib.suppress(OSError):
+            partial.unlink()
 
 
 def _probe(python: str) -> EnvironmentReport:
