@@ -357,15 +357,18 @@ def kept_models(recipe: str, results: Path = RESULTS) -> list[dict[str, Any]]:
 
 def typed_run(recipe: str, results: Path = RESULTS) -> dict[str, str]:
     """A command typed on a fresh machine whose kept model ``time-to-floor`` evaluated:
-    its set-up's time (``setup``), its case's pre-run's (``prerun``), the two together
-    (``before``) and the whole command's (``whole``, the evaluation included), from the
-    ``typed`` record of its results file."""
+    its set-up's time (``setup``), its case's pre-run's (``prerun``), how long after the
+    command its training could start (``before``: the pre-run's end where the record has
+    it, ``prerun_done_seconds``, the pre-run having run beside the set-up; else the set-up
+    and the pre-run one after the other) and the whole command's (``whole``, the
+    evaluation included), from the ``typed`` record of its results file."""
     typed = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")["typed"]
     setup, prerun = typed["setup_seconds"], typed["prerun_seconds"]
+    before = typed.get("prerun_done_seconds", setup + prerun)
     return {
         "setup": clock(setup),
         "prerun": clock(prerun),
-        "before": clock(setup + prerun),
+        "before": clock(before),
         "whole": clock(typed["whole_command_seconds"]),
     }
 
