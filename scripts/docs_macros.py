@@ -320,10 +320,17 @@ def training_table(
     return "\n".join(rows)
 
 
+def _time_to_floor_file(recipe: str, results: Path) -> Path:
+    """``time-to-floor-jet-cylinder-fast-<recipe>.json``; ``history/<recipe>`` is an earlier
+    one's, kept in ``history/``."""
+    folder, _, name = recipe.rpartition("/")
+    return results / folder / f"time-to-floor-jet-cylinder-fast-{name}.json"
+
+
 def time_to_floor(recipe: str, fraction: float, results: Path = RESULTS) -> dict[str, Any]:
     """The median time to a fraction of the drag floor: ``median``, ``low``, ``high``,
     ``reached``, and ``seeds``, each seed's time in seed order (``not reached``)."""
-    data = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")
+    data = _load(_time_to_floor_file(recipe, results))
     entry = data["summary"][f"{fraction:g}"]
     reached = entry["runs"] - entry.get("not_reached", 0)
     return {
@@ -340,7 +347,7 @@ def kept_models(recipe: str, results: Path = RESULTS) -> list[dict[str, Any]]:
     in run order: its ``steps``, when it was saved (``saved``, from the typed command),
     the fraction of the floor it takes once settled (``settled``, over the held-out
     starts) and from each start (``per_start``)."""
-    data = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")
+    data = _load(_time_to_floor_file(recipe, results))
     models = []
     for run in data["runs"]:
         last = run["checkpoints"][-1]
@@ -362,7 +369,7 @@ def typed_run(recipe: str, results: Path = RESULTS) -> dict[str, str]:
     it, ``prerun_done_seconds``, the pre-run having run beside the set-up; else the set-up
     and the pre-run one after the other) and the whole command's (``whole``, the
     evaluation included), from the ``typed`` record of its results file."""
-    typed = _load(results / f"time-to-floor-jet-cylinder-fast-{recipe}.json")["typed"]
+    typed = _load(_time_to_floor_file(recipe, results))["typed"]
     setup, prerun = typed["setup_seconds"], typed["prerun_seconds"]
     before = typed.get("prerun_done_seconds", setup + prerun)
     return {

@@ -8,23 +8,26 @@
 # unpinned torch would resolve to a CUDA build of several GB. Everything else is installed
 # by uv (`uv pip install`, uv itself put in the environment by pip), with torch held at the
 # installed version by a constraint: on a 2-core machine uv installs the rest of .venv in
-# about 10 s where pip took 73 s (same packages, same versions, empty caches both). Where uv
-# cannot be installed or fails, pip installs the rest, as before.
+# about 10 s where pip took 73 s (same packages, same versions, empty caches both; before
+# byte-compiling, which both do). Where uv cannot be installed or fails, pip installs the
+# rest, as before.
 venv_install() {
   local python="$1" torch_version="$2" constraints
   shift 2
   local pip=("$python" -m pip install -q --disable-pip-version-check)
   if [ "$("$python" -c 'import torch; print(torch.__version__.split("+")[0])' 2>/dev/null)" != "$torch_version" ]; then
-    # --no-compile: pip's byte-compiling of torch's thousands of modules took 16 s of its
-    # 42 s; Python compiles the few a run imports when it first imports them
-    "${pip[@]}" --no-compile "torch==${torch_version}"
+    "${pip[@]}" "torch==${torch_version}"
   fi
   local bin
   bin="$(dirname "$python")"
   if [ -x "$bin/uv" ] || "${pip[@]}" uv >/dev/null 2>&1; then
     constraints="$(mktemp)"
     echo "torch==${torch_version}" >"$constraints"
-    if "$bin/uv" pip install -q --python "$python" --constraint "$constraints" "$@"; then
+    # --compile-bytecode, as pip does: where PYTHONDONTWRITEBYTECODE is set (CI machines,
+    # containers), Python never caches what it compiles, and every process would compile
+    # numpy, gymnasium and the rest from source at each import
+    if "$bin/uv" pip install -q --compile-bytecode --python "$python" \
+      --constraint "$constraints" "$@"; then
       rm -f "$constraints"
       return 0
     fi

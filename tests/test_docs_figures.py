@@ -105,21 +105,28 @@ def test_a_typed_run_s_kept_model_and_its_times_are_read_from_its_results_file(
     results = tmp_path / "results"
     shutil.copytree(macros.RESULTS, results)
     (model,) = macros.kept_models("train-sh-fresh", results)
-    assert model["steps"] == "1,600" and model["saved"] == "9 min 14 s"
-    assert model["settled"] == "98.9 %" and model["per_start"] == ["98.9 %", "99.0 %"]
+    assert model["steps"] == "1,600" and model["saved"] == "6 min 28 s"
+    assert model["settled"] == "96.9 %" and model["per_start"] == ["96.7 %", "97.0 %"]
+    # the pre-run ran beside the set-up: the training started at the pre-run's end
     assert macros.typed_run("train-sh-fresh", results) == {
-        "setup": "1 min 43 s",
-        "prerun": "47 s",
-        "before": "2 min 30 s",
-        "whole": "11 min 05 s",
+        "setup": "21 s",
+        "prerun": "32 s",
+        "before": "52 s",
+        "whole": "27 min 12 s",
     }
+    # the run before it, kept in history/: the set-up, then the pre-run
+    earlier = macros.typed_run("history/train-sh-fresh-before-uv", results)
+    assert earlier["before"] == "2 min 30 s" and earlier["setup"] == "1 min 43 s"
     path = results / "time-to-floor-jet-cylinder-fast-train-sh-fresh.json"
     data = json.loads(path.read_text())
-    data["typed"]["setup_seconds"] = 60
+    data["typed"]["prerun_done_seconds"] = 60
     data["runs"][0]["checkpoints"][-1]["settled_floor_fraction"] = 0.95
     path.write_text(json.dumps(data))
-    assert macros.typed_run("train-sh-fresh", results)["before"] == "1 min 47 s"
+    assert macros.typed_run("train-sh-fresh", results)["before"] == "1 min"
     assert macros.kept_models("train-sh-fresh", results)[0]["settled"] == "95.0 %"
+    del data["typed"]["prerun_done_seconds"]
+    path.write_text(json.dumps(data))
+    assert macros.typed_run("train-sh-fresh", results)["before"] == "53 s"
 
 
 def test_the_set_up_table_is_written_from_its_timings() -> None:

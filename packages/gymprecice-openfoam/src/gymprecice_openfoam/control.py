@@ -15,8 +15,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from foamlib import FoamFile
-
 from gymprecice.plugin import CaseError
 from gymprecice_openfoam import foamio
 
@@ -134,6 +132,8 @@ def uncoupled_control_dict(
     original = path.read_bytes()
     try:
         removable = adapter_entries(case_dir)
+        from foamlib import FoamFile  # imported when used: see foamio.loads
+
         with FoamFile(path) as control:
             for name in removable:
                 del control["functions", name]
@@ -205,6 +205,8 @@ def set_start(
             changes["endTime"] = _number(end_time)
     if not changes:
         return False
+    from foamlib import FoamFile  # imported when used: see foamio.loads
+
     with FoamFile(control_dict_path(case_dir)) as f:
         for key, value in changes.items():
             f[key] = value

@@ -51,7 +51,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from foamlib import FoamFieldFile, FoamFile
 
 from gymprecice.plugin import ConfigError, Field, SolverContext
 from gymprecice_openfoam import control, foamio, mesh
@@ -197,6 +196,8 @@ def set_field_writes(
 
 
 def _read_labels(path: Path) -> np.ndarray:
+    from foamlib import FoamFile  # imported when used: see foamio.loads
+
     parsed = FoamFile(path)[None]
     return np.asarray(parsed, dtype=np.int64).ravel()
 
@@ -276,6 +277,8 @@ def _written(path: Path) -> bool:
 def _values(path: Path, n: int) -> np.ndarray:
     if not _written(path):
         raise ValueError(f"{path} is being written")
+    from foamlib import FoamFieldFile  # imported when used: see foamio.loads
+
     internal = FoamFieldFile(path).internal_field
     values = np.asarray(internal, dtype=float)
     if values.ndim == 0 or (values.ndim == 1 and len(values) in (2, 3) and n not in (2, 3)):

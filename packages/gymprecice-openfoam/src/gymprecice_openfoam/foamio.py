@@ -29,7 +29,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from foamlib import FoamFile, FoamFileDecodeError
 
 from gymprecice.plugin import CaseError
 
@@ -66,6 +65,11 @@ def loads(path: Path, data: bytes) -> Any:
     under key ``None`` for list files. Parse errors become :class:`CaseError` naming the
     file.
     """
+    # foamlib (and the asyncio and rich it brings) is imported where a file is read: every
+    # `import gymprecice` loads this plugin to register environments, and most processes
+    # that do (coupling workers, env workers, the lab's commands) never parse a file
+    from foamlib import FoamFile, FoamFileDecodeError
+
     try:
         return FoamFile.loads(data, include_header=True)
     except (FoamFileDecodeError, ValueError, TypeError) as exc:
