@@ -485,8 +485,11 @@ def headline_figures(results: Path = RESULTS, policies: Path = POLICIES) -> list
             if text.count(" ") >= 3:  # two parts: "9 min 57 s", "1 h 1 min"
                 figures.append(Figure(text, _source(source), macro, _clock_pattern(text)))
 
-    for path in sorted(results.glob("time-to-floor-jet-cylinder-fast-*.json")):
+    earlier = results.glob("history/time-to-floor-jet-cylinder-fast-*.json")
+    for path in sorted([*results.glob("time-to-floor-jet-cylinder-fast-*.json"), *earlier]):
         recipe = path.stem.removeprefix("time-to-floor-jet-cylinder-fast-")
+        if path.parent.name == "history":
+            recipe = f"history/{recipe}"
         for fraction in _load(path)["summary"]:
             summary = time_to_floor(recipe, float(fraction), results)
             macro = f'time_to_floor("{recipe}", {fraction})'
