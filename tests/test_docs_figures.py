@@ -105,14 +105,14 @@ def test_a_typed_run_s_kept_model_and_its_times_are_read_from_its_results_file(
     results = tmp_path / "results"
     shutil.copytree(macros.RESULTS, results)
     (model,) = macros.kept_models("train-sh-fresh", results)
-    assert model["steps"] == "1,600" and model["saved"] == "6 min 28 s"
+    assert model["steps"] == "1,600" and model["saved"] == "5 min 33 s"
     assert model["settled"] == "96.9 %" and model["per_start"] == ["96.7 %", "97.0 %"]
     # the pre-run ran beside the set-up: the training started at the pre-run's end
     assert macros.typed_run("train-sh-fresh", results) == {
-        "setup": "21 s",
-        "prerun": "32 s",
-        "before": "52 s",
-        "whole": "27 min 12 s",
+        "setup": "44 s",
+        "prerun": "25 s",
+        "before": "1 min 07 s",
+        "whole": "19 min 14 s",
     }
     # the run before it, kept in history/: the set-up, then the pre-run
     earlier = macros.typed_run("history/train-sh-fresh-before-uv", results)
@@ -126,7 +126,7 @@ def test_a_typed_run_s_kept_model_and_its_times_are_read_from_its_results_file(
     assert macros.kept_models("train-sh-fresh", results)[0]["settled"] == "95.0 %"
     del data["typed"]["prerun_done_seconds"]
     path.write_text(json.dumps(data))
-    assert macros.typed_run("train-sh-fresh", results)["before"] == "53 s"
+    assert macros.typed_run("train-sh-fresh", results)["before"] == "1 min 09 s"
 
 
 def test_the_set_up_table_is_written_from_its_timings() -> None:
