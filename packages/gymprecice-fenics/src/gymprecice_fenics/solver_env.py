@@ -122,9 +122,9 @@ def probe(python: str | None = None, *, refresh: bool = False) -> EnvironmentRep
     import), paid by every ``gymprecice doctor`` and by every lab command, whose manifest
     records the doctor's report: so the answer is cached for the process, and a healthy one
     of a virtual environment also in that environment's folder, for as long as no file it
-    depends on changes (:func:`_fingerprint`). Problems name the piece and the fix: no interpreter, a
-    missing module, numpy 2 (which fenicsprecice 2.x and Debian's dolfin do not support), a
-    pyprecice of preCICE v2.
+    depends on changes (:func:`_fingerprint`). Problems name the piece and the fix: no
+    interpreter, a missing module, numpy 2 (which fenicsprecice 2.x and Debian's dolfin do
+    not support), a pyprecice of preCICE v2.
     """
     python = python or fenics_python()
     if not refresh and python in _CACHE:

@@ -197,25 +197,18 @@ def _build_pyprecice(ctx: BuildContext) -> None:
         ctx.say(f"[install]   that wheel does not import ({version}): compiling afresh")
         shutil.rmtree(wheels, ignore_errors=True)
     ctx.say("[install]   compiling pyprecice against preCICE (about a minute)")
-    if wheels is None:
-        ctx.run(
-            [*pip, "install", "--no-cache-dir", "--force-reinstall", "--no-deps", "--no-binary",
-             "pyprecice", f"pyprecice=={PYPRECICE_VERSION}"],
-            cwd=ctx.work,
-            env=env,
-        )  # fmt: skip
-    else:
-        scratch = ctx.work / "wheel"
-        ctx.run(
-            [*pip, "wheel", "--no-cache-dir", "--no-deps", "--no-binary", "pyprecice",
-             "--wheel-dir", scratch, f"pyprecice=={PYPRECICE_VERSION}"],
-            cwd=ctx.work,
-            env=env,
-        )  # fmt: skip
-        built = sorted(scratch.glob("pyprecice-*.whl"))
-        if not built:
-            raise BuildError(f"pyprecice {PYPRECICE_VERSION}: pip wrote no wheel")
-        ctx.run([*pip, "install", "--force-reinstall", "--no-deps", built[0]], cwd=ctx.work)
+    scratch = ctx.work / "wheel"
+    ctx.run(
+        [*pip, "wheel", "--no-cache-dir", "--no-deps", "--no-binary", "pyprecice",
+         "--wheel-dir", scratch, f"pyprecice=={PYPRECICE_VERSION}"],
+        cwd=ctx.work,
+        env=env,
+    )  # fmt: skip
+    built = sorted(scratch.glob("pyprecice-*.whl"))
+    if not built:
+        raise BuildError(f"pyprecice {PYPRECICE_VERSION}: pip wrote no wheel")
+    ctx.run([*pip, "install", "--force-reinstall", "--no-deps", built[0]], cwd=ctx.work)
+    if wheels is not None:
         # kept whole or not at all: a half-copied wheel is never found
         wheels.mkdir(parents=True, exist_ok=True)
         partial = wheels / f".{built[0].name}.partial"

@@ -24,9 +24,10 @@ import signal
 import sys
 import tempfile
 import time
+from pathlib import Path
 from typing import Any
 
-from gymprecice.tools.sketch_command import SketchRefused, load_case, parse_env_kwargs
+from gymprecice.tools.sketch_command import SketchRefused, env_layer, load_case, parse_env_kwargs
 
 __all__ = ["add_prepare_parser", "cmd_prepare"]
 
@@ -58,15 +59,12 @@ def add_prepare_parser(sub: Any) -> None:
 
 def _prepare(env: Any) -> dict[str, Any]:
     """Prepare the env's run directory; each solver's case directory, by name."""
-    seen = env.unwrapped
-    for _ in range(8):
-        dirs = getattr(seen, "solver_dirs", None)
-        if dirs is not None:
-            return dict(dirs)
-        seen = getattr(seen, "env", None)  # a joint env holds its multi-agent env
-        if seen is None:
-            break
-    raise SketchRefused("the environment prepares no solver case of gymprecice's (no solver_dirs)")
+    layer = env_layer(env, lambda seen: hasattr(seen, "solver_dirs"))
+    if layer is None:
+        raise SketchRefused(
+            "the environment prepares no solver case of gymprecice's (no solver_dirs)"
+        )
+    return dict(layer.solver_dirs)
 
 
 def _raise_stopped(signum: int, frame: object) -> None:
@@ -74,8 +72,6 @@ def _raise_stopped(signum: int, frame: object) -> None:
 
 
 def cmd_prepare(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     if Path(args.env).exists():
         print(
             f"gymprecice prepare: error: {args.env}: give a registered environment (its id or "

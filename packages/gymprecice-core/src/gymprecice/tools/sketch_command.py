@@ -31,6 +31,7 @@ __all__ = [
     "add_sketch_parser",
     "cmd_sketch",
     "config_of",
+    "env_layer",
     "load_case",
     "output_path",
     "parse_env_kwargs",
@@ -108,20 +109,26 @@ def parse_env_kwargs(text: str | None) -> dict[str, Any]:
     return value
 
 
+def env_layer(env: Any, holds: Any) -> Any:
+    """The first of the env's layers (through wrappers and joint envs) for which
+    ``holds(layer)`` is true, or ``None``."""
+    seen = getattr(env, "unwrapped", env)
+    for _ in range(8):
+        if holds(seen):
+            return seen
+        seen = getattr(seen, "env", None)  # a JointEnv holds its multi-agent env
+        if seen is None:
+            return None
+    return None
+
+
 def config_of(env: Any) -> Any:
     """The env's :class:`~gymprecice.config.GymPreciceConfig` (through wrappers and joint
     envs), or ``None``."""
     from gymprecice.env.config import GymPreciceConfig
 
-    seen = getattr(env, "unwrapped", env)
-    for _ in range(8):
-        config = getattr(seen, "config", None)
-        if isinstance(config, GymPreciceConfig):
-            return config
-        seen = getattr(seen, "env", None)  # a JointEnv holds its multi-agent env
-        if seen is None:
-            return None
-    return None
+    layer = env_layer(env, lambda seen: isinstance(getattr(seen, "config", None), GymPreciceConfig))
+    return None if layer is None else layer.config
 
 
 def load_case(name: str, run_root: str, kwargs: dict[str, Any]) -> tuple[Any, str, Any]:

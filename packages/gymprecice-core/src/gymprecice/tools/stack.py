@@ -398,10 +398,9 @@ def install(
         with ThreadPoolExecutor(max_workers=max(1, at_once)) as pool:
             while pending or running:
                 # longest first: after preCICE, its two adapters side by side, then pyprecice
-                # and FEniCS's environment as each frees a slot. With the step times of a
-                # 2-core machine (101, 92, 44 and 42 s) that is about 145 s after preCICE,
-                # where the listed order (pyprecice and FEniCS's one after the other beside
-                # the deal.II adapter, then OpenFOAM's) took 178 s
+                # and FEniCS's environment as each frees a slot (the listed order ran those
+                # two one after the other beside the deal.II adapter, and the OpenFOAM
+                # adapter only after them)
                 ready = sorted(pending, key=lambda entry: -entry[0].about_seconds)
                 for entry in ready:
                     step = entry[0]
